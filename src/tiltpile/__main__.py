@@ -1,0 +1,3 @@
+from tiltpile.cli import main
+
+raise SystemExit(main())

@@ -1,0 +1,223 @@
+"""Run configuration: TOML presets validated into frozen dataclasses.
+
+This module is the only one that parses configuration text. A configuration has three
+sections, each a frozen dataclass whose fields carry their type and allowed range:
+
+``scene``     the grains and the box (what is simulated),
+``solver``    the Contact Dynamics integrator (how accurately),
+``protocol``  deposition and quasi-static tilt (what is done to the pile).
+
+Presets ``smoke``, ``default`` and ``paper`` live in ``tiltpile/presets/*.toml``. A preset may be
+overridden by a TOML file and by ``key=value`` strings with dotted keys (``solver.dt=0.005``).
+Anything wrong -- an unknown section or key, a wrong type, a value out of range -- raises
+:class:`ConfigError` naming the field and the allowed values, before anything is computed or written.
+
+Units: mean grain diameter d = 1, gravity g = 1, grain density 1 (mass = disk area);
+time in sqrt(d/g), angles in degrees.
+"""
+
+from __future__ import annotations
+
+import dataclasses
+import hashlib
+import json
+import math
+import tomllib
+from dataclasses import dataclass, field, fields
+from importlib import resources
+from pathlib import Path
+from typing import Any
+
+PRESETS = ("smoke", "default", "paper")
+
+
+class ConfigError(ValueError):
+    """A configuration value is missing, unknown, of the wrong type or out of range."""
+
+
+def _spec(lo=None, hi=None, lo_open=False, hi_open=False, choices=None, doc=""):
+    """Field metadata: allowed range [lo, hi] (open ends if *_open) or a set of choices."""
+    return {"lo": lo, "hi": hi, "lo_open": lo_open, "hi_open": hi_open, "choices": choices, "doc": doc}
+
+
+def _f(default, **kw):
+    return field(default=default, metadata=_spec(**kw))
+
+
+@dataclass(frozen=True)
+class SceneConfig:
+    n: int = _f(400, lo=1, hi=10_000_000, doc="number of mobile grains")
+    polydispersity: float = _f(0.2, lo=0.0, hi=1.0, hi_open=True,
+                               doc="diameters uniform in [1 - p, 1 + p] (mean d = 1)")
+    box_length: float = _f(30.0, lo=2.0, lo_open=False, doc="box length L in d")
+    mu: float = _f(0.5, lo=0.0, doc="grain-grain (and grain-fixed-grain) friction coefficient")
+    mu_wall: float = _f(0.5, lo=0.0, doc="friction coefficient of the floor and side walls")
+    fill_spacing: float = _f(1.15, lo=1.0, hi=3.0,
+                             doc="initial loose lattice spacing, in units of the largest diameter")
+
+
+@dataclass(frozen=True)
+class SolverConfig:
+    dt: float = _f(0.01, lo=0.0, lo_open=True, hi=1.0, doc="time step in sqrt(d/g)")
+    tol: float = _f(1e-4, lo=0.0, lo_open=True, hi=1.0,
+                    doc="NLGS stop: relative L2 change of the impulses over one sweep")
+    max_iter: int = _f(5000, lo=1, hi=10_000_000, doc="cap on NLGS sweeps per step")
+    sweep: str = _f("alternating", choices=("alternating", "random", "forward"),
+                    doc="contact order of the NLGS sweeps")
+    alert: float = _f(0.1, lo=0.0, lo_open=True, hi=1.0,
+                      doc="alert distance (d) of the candidate contact list")
+
+
+@dataclass(frozen=True)
+class ProtocolConfig:
+    tilt_per_step_deg: float = _f(0.001, lo=0.0, lo_open=True, hi=1.0, doc="rotation of gravity per step")
+    theta_max_deg: float = _f(30.0, lo=0.0, hi=90.0, doc="final inclination")
+    frame_every: int = _f(50, lo=1, hi=10_000_000, doc="steps between frames")
+    rest_ke: float = _f(1e-7, lo=0.0, lo_open=True,
+                        doc="deposition ends when kinetic energy per grain (m g d) stays below this")
+    rest_steps: int = _f(100, lo=1, doc="... for this many consecutive steps")
+    max_deposition_steps: int = _f(50_000, lo=1, doc="give up if the pile is not at rest by then")
+    checkpoint_every: int = _f(20, lo=1, doc="frames between checkpoints")
+
+
+SECTIONS = {"scene": SceneConfig, "solver": SolverConfig, "protocol": ProtocolConfig}
+
+
+@dataclass(frozen=True)
+class Config:
+    scene: SceneConfig = field(default_factory=SceneConfig)
+    solver: SolverConfig = field(default_factory=SolverConfig)
+    protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
+
+    def to_dict(self) -> dict[str, dict[str, Any]]:
+        return dataclasses.asdict(self)
+
+    def to_json(self) -> str:
+        return json.dumps(self.to_dict(), sort_keys=True)
+
+    def hash(self) -> str:
+        """sha256 of the canonical JSON text: two configs with equal hashes simulate the same thing."""
+        return hashlib.sha256(self.to_json().encode()).hexdigest()
+
+
+def _check_value(section: str, f: dataclasses.Field, value: Any) -> Any:
+    name = f"{section}.{f.name}"
+    meta = f.metadata
+    typ = f.type if isinstance(f.type, type) else {"int": int, "float": float, "str": str}[f.type]
+    if typ is int:
+        if isinstance(value, bool) or not isinstance(value, int):
+            raise ConfigError(f"{name}: expected an integer, got {value!r} ({type(value).__name__})")
+    elif typ is float:
+        if isinstance(value, bool) or not isinstance(value, (int, float)):
+            raise ConfigError(f"{name}: expected a number, got {value!r} ({type(value).__name__})")
+        value = float(value)
+        if not math.isfinite(value):
+            raise ConfigError(f"{name}: expected a finite number, got {value!r}")
+    elif typ is str:
+        if not isinstance(value, str):
+            raise ConfigError(f"{name}: expected a string, got {value!r} ({type(value).__name__})")
+    if meta.get("choices") is not None and value not in meta["choices"]:
+        raise ConfigError(f"{name}: {value!r} is not one of {', '.join(map(repr, meta['choices']))}")
+    lo, hi = meta.get("lo"), meta.get("hi")
+    bad = (lo is not None and (value <= lo if meta["lo_open"] else value < lo)) or \
+          (hi is not None and (value >= hi if meta["hi_open"] else value > hi))
+    if bad:
+        raise ConfigError(f"{name} = {value!r} is out of range: allowed {describe_range(f)}")
+    return value
+
+
+def describe_range(f: dataclasses.Field) -> str:
+    meta = f.metadata
+    if meta.get("choices") is not None:
+        return "one of " + ", ".join(map(repr, meta["choices"]))
+    lo, hi = meta.get("lo"), meta.get("hi")
+    left = "(-inf" if lo is None else ("(" if meta["lo_open"] else "[") + repr(lo)
+    right = "inf)" if hi is None else repr(hi) + (")" if meta["hi_open"] else "]")
+    return f"{left}, {right}"
+
+
+def from_dict(data: dict[str, Any], base: Config | None = None) -> Config:
+    """Validate a nested dict (``{"scene": {...}, ...}``) into a Config, starting from ``base``."""
+    base = base or Config()
+    if not isinstance(data, dict):
+        raise ConfigError("configuration must be a table of sections")
+    out = {}
+    for section, cls in SECTIONS.items():
+        current = dataclasses.asdict(getattr(base, section))
+        given = data.get(section, {})
+        if not isinstance(given, dict):
+            raise ConfigError(f"{section}: expected a table of keys, got {given!r}")
+        known = {f.name: f for f in fields(cls)}
+        for key, value in given.items():
+            if key not in known:
+                raise ConfigError(f"unknown key {section}.{key}; known keys: {', '.join(sorted(known))}")
+            current[key] = _check_value(section, known[key], value)
+        out[section] = cls(**current)
+    for section in data:
+        if section not in SECTIONS:
+            raise ConfigError(f"unknown section {section!r}; known sections: {', '.join(SECTIONS)}")
+    cfg = Config(**out)
+    _check_consistency(cfg)
+    return cfg
+
+
+def _check_consistency(cfg: Config) -> None:
+    if cfg.scene.box_length < 2 * (1 + cfg.scene.polydispersity) * cfg.scene.fill_spacing:
+        raise ConfigError("scene.box_length is too short to hold a row of grains")
+
+
+def parse_override(text: str) -> dict[str, Any]:
+    """``"solver.dt=0.005"`` -> ``{"solver": {"dt": 0.005}}`` (TOML value syntax; bare words are strings)."""
+    if "=" not in text:
+        raise ConfigError(f"override {text!r}: expected section.key=value")
+    key, raw = (s.strip() for s in text.split("=", 1))
+    if key.count(".") != 1:
+        raise ConfigError(f"override {text!r}: key must be section.key, e.g. solver.dt")
+    section, name = key.split(".")
+    try:
+        value = tomllib.loads(f"v = {raw}")["v"]
+    except tomllib.TOMLDecodeError:
+        value = raw
+    return {section: {name: value}}
+
+
+def _merge(a: dict, b: dict) -> dict:
+    out = {k: dict(v) if isinstance(v, dict) else v for k, v in a.items()}
+    for k, v in b.items():
+        if isinstance(v, dict) and isinstance(out.get(k), dict):
+            out[k].update(v)
+        else:
+            out[k] = v
+    return out
+
+
+def read_toml(path: str | Path) -> dict[str, Any]:
+    path = Path(path)
+    try:
+        return tomllib.loads(path.read_text())
+    except FileNotFoundError:
+        raise ConfigError(f"config file not found: {path}") from None
+    except tomllib.TOMLDecodeError as e:
+        raise ConfigError(f"{path}: not valid TOML ({e})") from None
+
+
+def preset_dict(name: str) -> dict[str, Any]:
+    if name not in PRESETS:
+        raise ConfigError(f"unknown preset {name!r}; choose one of {', '.join(PRESETS)}")
+    text = resources.files("tiltpile.presets").joinpath(f"{name}.toml").read_text()
+    return tomllib.loads(text)
+
+
+def load(preset: str = "smoke", config_file: str | Path | None = None,
+         overrides: list[str] | tuple[str, ...] = ()) -> Config:
+    """Preset, then config file, then ``key=value`` overrides; validated once at the end."""
+    data = preset_dict(preset)
+    if config_file is not None:
+        data = _merge(data, read_toml(config_file))
+    for text in overrides:
+        data = _merge(data, parse_override(text))
+    return from_dict(data)
+
+
+def from_json(text: str) -> Config:
+    return from_dict(json.loads(text))

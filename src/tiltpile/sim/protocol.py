@@ -1,0 +1,191 @@
+"""The numerical experiment: deposition under gravity, then quasi-static tilt.
+
+``run(config, seed)`` is a generator of plain events; it never writes files. The caller (the
+``simulate`` command, the ensemble) hands frames and checkpoints to ``tiltpile.store``.
+
+1. Deposition. Grains start on a loose jittered lattice (``scene``) and fall into the horizontal
+   box (theta = 0). Steps go in chunks of ``DEPOSITION_CHUNK``; deposition ends after the first
+   chunk in which the kinetic energy per mobile grain has stayed below ``rest_ke`` for
+   ``rest_steps`` consecutive steps; past ``max_deposition_steps`` the run stops with an error.
+2. Tilt. Gravity is rotated by ``tilt_per_step_deg`` every step from 0 to ``theta_max_deg``;
+   frame 0 is the deposited pile at theta = 0 and a frame follows every ``frame_every`` steps
+   (0.001 deg and 50 steps in the paper: 0.05 deg between frames).
+
+Events: ``Deposited`` (summary), ``Frame`` (arrays of one frame), ``Checkpoint`` (a full state,
+every ``checkpoint_every`` frames and every ``DEPOSITION_CHUNK * 10`` deposition steps), and
+``Progress`` (for progress bars). Resuming from a checkpoint's state gives the same events after
+it, bit for bit, as the uninterrupted run: every chunk boundary is a fixed multiple of steps.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Iterator
+
+import numpy as np
+
+from tiltpile.sim import rng as srng
+from tiltpile.sim.scene import make_scene
+from tiltpile.sim.solver import SWEEPS
+from tiltpile.sim.step import System
+
+DEPOSITION_CHUNK = 200
+OUT_OF_BOX = 2.0  # [d]: a grain this far outside the box means the integration has failed
+
+
+class SimulationError(RuntimeError):
+    """The integration failed (NaN, grains escaping the box) or a protocol limit was passed."""
+
+
+@dataclass
+class Deposited:
+    steps: int
+    time: float
+    ke_per_grain: float
+    height: float  # highest grain top [d]
+
+
+@dataclass
+class Frame:
+    index: int
+    step: int
+    time: float
+    theta_deg: float
+    position: np.ndarray   # (N, 2)
+    rotation: np.ndarray   # (N,)
+    velocity: np.ndarray   # (N, 2)
+    omega: np.ndarray      # (N,)
+    iterations: int        # NLGS sweeps of the frame's step
+    residual: float        # final NLGS residual of the frame's step
+    pair: np.ndarray       # (C, 2) int32, wall ids -1 floor, -2 left, -3 right
+    force: np.ndarray      # (C, 2) normal, tangential [m g]
+    status: np.ndarray     # (C,) int8: 0 open, 1 sticking, 2 sliding
+    ke: float              # kinetic energy of mobile grains at the frame [m g d]
+    max_overlap: float     # largest overlap over the steps since the previous frame [d]
+    max_iterations: int    # most sweeps of a step since the previous frame
+    cap_hits: int          # steps since the previous frame that hit max_iter
+    missed: int            # steps since the previous frame where a grain outran the alert distance
+
+
+@dataclass
+class Checkpoint:
+    state: dict            # System.state(): arrays and scalars
+
+
+@dataclass
+class Progress:
+    phase: str             # "deposit" or "tilt"
+    step: int
+    theta_deg: float
+    mean_iterations: float
+
+
+def tilt_steps_total(protocol) -> int:
+    return int(round(protocol.theta_max_deg / protocol.tilt_per_step_deg))
+
+
+def n_frames(protocol) -> int:
+    """Frames a complete run holds: theta = 0 and one every ``frame_every`` tilt steps."""
+    return tilt_steps_total(protocol) // protocol.frame_every + 1
+
+
+def make_system(config, seed: int) -> System:
+    """A fresh pile (loose lattice) for ``config`` and ``seed``."""
+    s, v = config.scene, config.solver
+    gen = np.random.default_rng(np.random.SeedSequence([seed, 0x7117]))
+    sc = make_scene(s.n, s.polydispersity, s.box_length, s.fill_spacing, gen)
+    sysm = System(sc["radius"], sc["fixed"], sc["position"], sc["inv_mass"], srng.make_state(seed),
+                  box_length=s.box_length, dt=v.dt, alert=v.alert, mu=s.mu, mu_wall=s.mu_wall,
+                  tol=v.tol, max_iter=v.max_iter, mode=SWEEPS[v.sweep])
+    sysm.scalars.update(phase="deposit", step=0, rest_count=0, tilt_step=0, frame=0,
+                        deposition_steps=0, rebuilds=0)
+    return sysm
+
+
+def _check_sane(sysm: System, box_length: float) -> None:
+    pos = sysm.pos
+    if not np.all(np.isfinite(pos)) or not np.all(np.isfinite(sysm.vel)):
+        raise SimulationError(f"non-finite positions or velocities at step {sysm.scalars['step']}")
+    out = (pos[:, 0] < -OUT_OF_BOX) | (pos[:, 0] > box_length + OUT_OF_BOX) | (pos[:, 1] < -OUT_OF_BOX)
+    if out.any():
+        raise SimulationError(f"{int(out.sum())} grains left the box at step {sysm.scalars['step']} "
+                              "(time step too large or solver not converged)")
+
+
+def _frame(sysm: System, protocol, dt: float, last_iter: int, last_res: float, window) -> Frame:
+    sc = sysm.scalars
+    pair, force, status = sysm.contacts()
+    its, overlap, missed = window
+    return Frame(index=sc["frame"], step=sc["step"], time=sc["step"] * dt,
+                 theta_deg=sc["tilt_step"] * protocol.tilt_per_step_deg,
+                 position=sysm.pos.copy(), rotation=sysm.rot.copy(), velocity=sysm.velocity.copy(),
+                 omega=sysm.omega.copy(), iterations=int(last_iter), residual=float(last_res),
+                 pair=pair, force=force, status=status, ke=float(_ke(sysm)),
+                 max_overlap=float(overlap), max_iterations=int(its.max()) if its.size else 0,
+                 cap_hits=int((its >= sysm.params["max_iter"]).sum()), missed=int(missed))
+
+
+def _ke(sysm: System) -> float:
+    v = sysm.vel[: sysm.n]
+    m = np.zeros(sysm.n)
+    mob = v[:, 3] > 0
+    m[mob] = 1.0 / v[mob, 3]
+    return float(0.5 * np.sum(m * (v[:, 0] ** 2 + v[:, 1] ** 2 + 0.5 * v[:, 2] ** 2)))
+
+
+def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Frame | Checkpoint | Progress]:
+    """Deposit and tilt one pile; resume from ``state`` (a ``Checkpoint.state``) if given."""
+    sysm = make_system(config, seed)
+    if state is not None:
+        sysm.restore(state)
+    sc = sysm.scalars
+    proto, dt = config.protocol, config.solver.dt
+    n_mobile = int((~sysm.fixed).sum())
+
+    while sc["phase"] == "deposit":
+        if sc["deposition_steps"] >= proto.max_deposition_steps:
+            raise SimulationError(
+                f"deposition not at rest after {sc['deposition_steps']} steps "
+                f"(kinetic energy per grain {_ke(sysm) / n_mobile:.3g} > rest_ke {proto.rest_ke:g}); "
+                "raise protocol.max_deposition_steps or rest_ke")
+        rec = sysm.advance(DEPOSITION_CHUNK, 0.0, 0.0)
+        sc["step"] += DEPOSITION_CHUNK
+        sc["deposition_steps"] += DEPOSITION_CHUNK
+        sc["rebuilds"] += rec.rebuilds
+        _check_sane(sysm, config.scene.box_length)
+        for quiet in rec.ke / n_mobile < proto.rest_ke:
+            sc["rest_count"] = sc["rest_count"] + 1 if quiet else 0
+        yield Progress("deposit", sc["step"], 0.0, float(rec.iterations.mean()))
+        if sc["rest_count"] >= proto.rest_steps:
+            sc["phase"] = "tilt"
+            top = float(np.max(sysm.pos[:, 1] + sysm.radius))
+            sc["deposition_height"] = top
+            sc["last_iterations"] = int(rec.iterations[-1])
+            sc["last_residual"] = float(rec.residual[-1])
+            yield Deposited(sc["deposition_steps"], sc["step"] * dt, _ke(sysm) / n_mobile, top)
+            yield _frame(sysm, proto, dt, sc["last_iterations"], sc["last_residual"],
+                         (rec.iterations[-1:], rec.overlap[-1], 0))
+            sc["frame"] = 1
+            yield Checkpoint(sysm.state())
+        elif (sc["deposition_steps"] // DEPOSITION_CHUNK) % 10 == 0:
+            yield Checkpoint(sysm.state())
+
+    total = tilt_steps_total(proto)
+    while sc["phase"] == "tilt" and sc["tilt_step"] < total:
+        k = min(proto.frame_every, total - sc["tilt_step"])
+        theta0 = sc["tilt_step"] * proto.tilt_per_step_deg
+        rec = sysm.advance(k, theta0, proto.tilt_per_step_deg)
+        sc["step"] += k
+        sc["tilt_step"] += k
+        sc["rebuilds"] += rec.rebuilds
+        _check_sane(sysm, config.scene.box_length)
+        if k == proto.frame_every:
+            yield _frame(sysm, proto, dt, rec.iterations[-1], rec.residual[-1],
+                         (rec.iterations, rec.overlap.max(), rec.missed.sum()))
+            sc["frame"] += 1
+        yield Progress("tilt", sc["step"], sc["tilt_step"] * proto.tilt_per_step_deg,
+                       float(rec.iterations.mean()))
+        if sc["tilt_step"] >= total:
+            sc["phase"] = "done"
+        if sc["phase"] == "done" or (sc["frame"] - 1) % proto.checkpoint_every == 0:
+            yield Checkpoint(sysm.state())

@@ -1,0 +1,219 @@
+"""One Moreau-Jean time step (theta = 1), and ``advance`` over many steps in one compiled call.
+
+A step from t to t + dt, with gravity g(theta) = (sin theta, -cos theta) (g = 1):
+
+1. free velocities  v* = v + dt g for mobile grains (no other body force: no cohesion,
+   no rolling resistance);
+2. if a grain could leave the region where the candidate list is valid -- its displacement since
+   the last build plus dt |v*| exceeds alert / 2 -- rebuild the list (``detect``) and carry the
+   impulses over by particle pair;
+3. contact geometry at the start of the step: unit normal n, gap g, b = g / dt;
+4. warm start: the impulses of the previous step are applied to v*;
+5. NLGS until converged (``solver``): velocities v(t + dt) and impulses;
+6. positions x += dt v(t + dt), rotations phi += dt s / r (theta = 1: implicit Euler on
+   positions, first order, dissipative, no energy drift).
+
+Per step ``advance`` records: NLGS sweeps and final residual, the largest overlap at the start of
+the step (max(-g), 0 if none), the kinetic energy of mobile grains, and whether a grain moved
+farther than alert / 2 since the last build after the step (a contact could have been missed:
+the time step is too large for the alert distance).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+
+from tiltpile.sim.detect import build_candidates, carry_impulses
+from tiltpile.sim.jit import njit
+from tiltpile.sim.solver import apply_impulses, nlgs
+
+
+@njit
+def contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall):
+    """Fill c[:, 0:6] (normal, b = gap / dt, mu, 1/W_nn, 1/W_tt); return the largest overlap."""
+    n = pos.shape[0]
+    overlap = 0.0
+    for a in range(ci.shape[0]):
+        i = ci[a]
+        j = cj[a]
+        if j < n:
+            dx = pos[i, 0] - pos[j, 0]
+            dy = pos[i, 1] - pos[j, 1]
+            dist = math.sqrt(dx * dx + dy * dy)
+            nx = dx / dist
+            ny = dy / dist
+            gap = dist - radius[i] - radius[j]
+            m = mu
+        else:
+            w = j - n
+            if w == 0:
+                nx, ny, gap = 0.0, 1.0, pos[i, 1] - radius[i]
+            elif w == 1:
+                nx, ny, gap = 1.0, 0.0, pos[i, 0] - radius[i]
+            else:
+                nx, ny, gap = -1.0, 0.0, box_length - pos[i, 0] - radius[i]
+            m = mu_wall
+        if -gap > overlap:
+            overlap = -gap
+        iw = 1.0 / (vel[i, 3] + vel[j, 3])
+        c[a, 0] = nx
+        c[a, 1] = ny
+        c[a, 2] = gap / dt
+        c[a, 3] = m
+        c[a, 4] = iw
+        c[a, 5] = iw / 3.0
+    return overlap
+
+
+@njit
+def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state, perm,
+            box_length, dt, alert, mu, mu_wall, tol, max_iter, mode,
+            theta0, dtheta, n_steps, out_iter, out_res, out_overlap, out_ke, out_missed):
+    """Advance ``n_steps`` steps; gravity angle of step k is theta0 + (k + 1) dtheta [rad].
+
+    Arrays are updated in place where their size allows; the contact arrays are returned since a
+    rebuild replaces them: returns (ci, cj, key, c, status, perm, n_rebuilds).
+    """
+    n = pos.shape[0]
+    half = 0.5 * alert
+    rebuilds = 0
+    for k in range(n_steps):
+        th = theta0 + (k + 1) * dtheta
+        gx = math.sin(th)
+        gy = -math.cos(th)
+        reach = 0.0
+        for i in range(n):
+            if vel[i, 3] > 0.0:
+                vel[i, 0] += dt * gx
+                vel[i, 1] += dt * gy
+            ddx = pos[i, 0] - ref[i, 0]
+            ddy = pos[i, 1] - ref[i, 1]
+            r = math.sqrt(ddx * ddx + ddy * ddy) + dt * math.sqrt(vel[i, 0] ** 2 + vel[i, 1] ** 2)
+            if not r <= reach:  # also catches NaN
+                reach = r
+        if not reach < half:
+            nci, ncj, nkey = build_candidates(pos, radius, fixed, box_length, alert)
+            nc = np.zeros((nci.shape[0], 8))
+            carry_impulses(key, c[:, 6:8], nkey, nc[:, 6:8])
+            ci, cj, key, c = nci, ncj, nkey, nc
+            status = np.zeros(ci.shape[0], np.int8)
+            perm = np.empty(ci.shape[0], np.int64)
+            ref[:, :] = pos
+            rebuilds += 1
+        out_overlap[k] = contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall)
+        apply_impulses(ci, cj, c, vel)
+        it, res = nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm)
+        out_iter[k] = it
+        out_res[k] = res
+        ke = 0.0
+        moved = 0.0
+        for i in range(n):
+            im = vel[i, 3]
+            if im > 0.0:
+                pos[i, 0] += dt * vel[i, 0]
+                pos[i, 1] += dt * vel[i, 1]
+                rot[i] += dt * vel[i, 2] / radius[i]
+                ke += 0.5 * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + 0.5 * vel[i, 2] ** 2) / im
+                ddx = pos[i, 0] - ref[i, 0]
+                ddy = pos[i, 1] - ref[i, 1]
+                moved = max(moved, ddx * ddx + ddy * ddy)
+        out_ke[k] = ke
+        out_missed[k] = moved > half * half
+    return ci, cj, key, c, status, perm, rebuilds
+
+
+class StepRecord:
+    """Per-step diagnostics of one ``System.advance`` call (arrays of length n_steps)."""
+
+    __slots__ = ("iterations", "residual", "overlap", "ke", "missed", "rebuilds")
+
+    def __init__(self, n_steps: int):
+        self.iterations = np.zeros(n_steps, np.int64)
+        self.residual = np.zeros(n_steps)
+        self.overlap = np.zeros(n_steps)
+        self.ke = np.zeros(n_steps)
+        self.missed = np.zeros(n_steps, np.bool_)
+        self.rebuilds = 0
+
+
+class System:
+    """The state of a pile and the parameters of its integrator; the thin layer over the kernels.
+
+    State arrays (``ARRAYS``) are everything a bit-identical restart needs; ``scalars`` holds the
+    counters the protocol keeps. Parameters: box_length, dt, alert, mu, mu_wall, tol, max_iter,
+    sweep mode (``solver.SWEEPS``).
+    """
+
+    ARRAYS = ("radius", "fixed", "pos", "rot", "vel", "ref", "ci", "cj", "key", "c", "status", "rng")
+
+    def __init__(self, radius, fixed, pos, inv_mass, rng, *, box_length, dt, alert, mu, mu_wall,
+                 tol, max_iter, mode):
+        from tiltpile.sim.solver import empty_contacts
+
+        n = radius.shape[0]
+        self.radius = np.ascontiguousarray(radius, dtype=np.float64)
+        self.fixed = np.ascontiguousarray(fixed, dtype=np.bool_)
+        self.pos = np.ascontiguousarray(pos, dtype=np.float64).copy()
+        self.rot = np.zeros(n)
+        self.vel = np.zeros((n + 3, 4))
+        self.vel[:n, 3] = inv_mass
+        self.ref = np.full((n, 2), np.inf)  # forces a build on the first step
+        self.ci, self.cj, self.key, self.c, self.status = empty_contacts()
+        self.perm = np.empty(0, np.int64)
+        self.rng = rng
+        self.params = dict(box_length=float(box_length), dt=float(dt), alert=float(alert), mu=float(mu),
+                           mu_wall=float(mu_wall), tol=float(tol), max_iter=int(max_iter), mode=int(mode))
+        self.scalars: dict = {}
+
+    @property
+    def n(self) -> int:
+        return self.radius.shape[0]
+
+    def advance(self, n_steps: int, theta0_deg: float, dtheta_deg: float) -> StepRecord:
+        """Run ``n_steps`` steps; step k (0-based) feels gravity at theta0 + (k + 1) dtheta."""
+        rec = StepRecord(n_steps)
+        p = self.params
+        (self.ci, self.cj, self.key, self.c, self.status, self.perm, rec.rebuilds) = advance(
+            self.pos, self.rot, self.vel, self.radius, self.fixed, self.ref, self.ci, self.cj, self.key,
+            self.c, self.status, self.rng, self.perm, p["box_length"], p["dt"], p["alert"], p["mu"],
+            p["mu_wall"], p["tol"], p["max_iter"], p["mode"], math.radians(theta0_deg),
+            math.radians(dtheta_deg), n_steps, rec.iterations, rec.residual, rec.overlap, rec.ke,
+            rec.missed)
+        return rec
+
+    # -- views used by the protocol and the tests ---------------------------------------------
+    @property
+    def velocity(self) -> np.ndarray:
+        return self.vel[: self.n, :2]
+
+    @property
+    def omega(self) -> np.ndarray:
+        return self.vel[: self.n, 2] / self.radius
+
+    def contacts(self, active_only: bool = False):
+        """Current contacts: (pair (C,2) int32 with wall ids < 0, force (C,2) = impulse / dt, status).
+
+        Listed: contacts carrying a force and touching ones (gap <= 0) that carry none (status 0);
+        ``active_only`` keeps those with f_n > 0.
+        """
+        from tiltpile.sim.detect import wall_ids
+
+        p_n = self.c[:, 6]
+        keep = p_n > 0 if active_only else (p_n > 0) | (self.c[:, 2] <= 0)
+        pair = np.column_stack([self.ci[keep], wall_ids(self.cj[keep], self.n)]).astype(np.int32)
+        force = self.c[keep, 6:8] / self.params["dt"]
+        return pair, force, self.status[keep].copy()
+
+    def state(self) -> dict:
+        """Copies of every state array plus the scalars: enough for a bit-identical restart."""
+        out = {k: getattr(self, k).copy() for k in self.ARRAYS}
+        out["scalars"] = dict(self.scalars)
+        return out
+
+    def restore(self, state: dict) -> None:
+        for k in self.ARRAYS:
+            setattr(self, k, np.ascontiguousarray(state[k]).copy())
+        self.perm = np.empty(self.ci.shape[0], np.int64)
+        self.scalars = dict(state["scalars"])
