@@ -59,10 +59,12 @@ class SceneConfig:
 @dataclass(frozen=True)
 class SolverConfig:
     dt: float = _f(0.01, lo=0.0, lo_open=True, hi=1.0, doc="time step in sqrt(d/g)")
-    tol: float = _f(1e-4, lo=0.0, lo_open=True, hi=1.0,
+    tol: float = _f(1e-6, lo=0.0, lo_open=True, hi=1.0,
                     doc="NLGS stop: relative L2 change of the impulses over one sweep")
-    max_iter: int = _f(5000, lo=1, hi=10_000_000, doc="cap on NLGS sweeps per step")
-    sweep: str = _f("alternating", choices=("alternating", "random", "forward"),
+    deposition_tol: float = _f(1e-4, lo=0.0, lo_open=True, hi=1.0,
+                               doc="the same during deposition (only its end state matters)")
+    max_iter: int = _f(2000, lo=1, hi=10_000_000, doc="cap on NLGS sweeps per step")
+    sweep: str = _f("forward", choices=("alternating", "random", "forward"),
                     doc="contact order of the NLGS sweeps")
     alert: float = _f(0.1, lo=0.0, lo_open=True, hi=1.0,
                       doc="alert distance (d) of the candidate contact list")

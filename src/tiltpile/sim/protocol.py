@@ -7,6 +7,8 @@
    box (theta = 0). Steps go in chunks of ``DEPOSITION_CHUNK``; deposition ends after the first
    chunk in which the kinetic energy per mobile grain has stayed below ``rest_ke`` for
    ``rest_steps`` consecutive steps; past ``max_deposition_steps`` the run stops with an error.
+   Deposition solves to ``solver.deposition_tol`` (only its end state matters); the pile then
+   takes ``rest_steps`` more steps at theta = 0 at ``solver.tol`` before frame 0.
 2. Tilt. Gravity is rotated by ``tilt_per_step_deg`` every step from 0 to ``theta_max_deg``;
    frame 0 is the deposited pile at theta = 0 and a frame follows every ``frame_every`` steps
    (0.001 deg and 50 steps in the paper: 0.05 deg between frames).
@@ -142,6 +144,7 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Fr
     proto, dt = config.protocol, config.solver.dt
     n_mobile = int((~sysm.fixed).sum())
 
+    sysm.params["tol"] = config.solver.deposition_tol
     while sc["phase"] == "deposit":
         if sc["deposition_steps"] >= proto.max_deposition_steps:
             raise SimulationError(
@@ -160,16 +163,19 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Fr
             sc["phase"] = "tilt"
             top = float(np.max(sysm.pos[:, 1] + sysm.radius))
             sc["deposition_height"] = top
-            sc["last_iterations"] = int(rec.iterations[-1])
-            sc["last_residual"] = float(rec.residual[-1])
             yield Deposited(sc["deposition_steps"], sc["step"] * dt, _ke(sysm) / n_mobile, top)
-            yield _frame(sysm, proto, dt, sc["last_iterations"], sc["last_residual"],
-                         (rec.iterations[-1:], rec.overlap[-1], 0))
+            # frame 0: the deposited pile brought to the tilt tolerance, rest_steps steps at theta = 0
+            sysm.params["tol"] = config.solver.tol
+            rec = sysm.advance(proto.rest_steps, 0.0, 0.0)
+            sc["step"] += proto.rest_steps
+            yield _frame(sysm, proto, dt, rec.iterations[-1], rec.residual[-1],
+                         (rec.iterations, rec.overlap[-1], rec.missed.sum()))
             sc["frame"] = 1
             yield Checkpoint(sysm.state())
         elif (sc["deposition_steps"] // DEPOSITION_CHUNK) % 10 == 0:
             yield Checkpoint(sysm.state())
 
+    sysm.params["tol"] = config.solver.tol
     total = tilt_steps_total(proto)
     while sc["phase"] == "tilt" and sc["tilt_step"] < total:
         k = min(proto.frame_every, total - sc["tilt_step"])

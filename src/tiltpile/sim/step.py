@@ -69,9 +69,10 @@ def contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall):
 
 @njit
 def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state, perm,
-            box_length, dt, alert, mu, mu_wall, tol, max_iter, mode,
+            box_length, dt, alert, mu, mu_wall, tol, max_iter, mode, gravity,
             theta0, dtheta, n_steps, out_iter, out_res, out_overlap, out_ke, out_missed):
-    """Advance ``n_steps`` steps; gravity angle of step k is theta0 + (k + 1) dtheta [rad].
+    """Advance ``n_steps`` steps; gravity angle of step k is theta0 + (k + 1) dtheta [rad],
+    its magnitude ``gravity`` (1 in every run; 0 in some validation tests).
 
     Arrays are updated in place where their size allows; the contact arrays are returned since a
     rebuild replaces them: returns (ci, cj, key, c, status, perm, n_rebuilds).
@@ -81,8 +82,8 @@ def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state
     rebuilds = 0
     for k in range(n_steps):
         th = theta0 + (k + 1) * dtheta
-        gx = math.sin(th)
-        gy = -math.cos(th)
+        gx = gravity * math.sin(th)
+        gy = -gravity * math.cos(th)
         reach = 0.0
         for i in range(n):
             if vel[i, 3] > 0.0:
@@ -143,13 +144,13 @@ class System:
 
     State arrays (``ARRAYS``) are everything a bit-identical restart needs; ``scalars`` holds the
     counters the protocol keeps. Parameters: box_length, dt, alert, mu, mu_wall, tol, max_iter,
-    sweep mode (``solver.SWEEPS``).
+    sweep mode (``solver.SWEEPS``), gravity magnitude (1).
     """
 
     ARRAYS = ("radius", "fixed", "pos", "rot", "vel", "ref", "ci", "cj", "key", "c", "status", "rng")
 
     def __init__(self, radius, fixed, pos, inv_mass, rng, *, box_length, dt, alert, mu, mu_wall,
-                 tol, max_iter, mode):
+                 tol, max_iter, mode, gravity=1.0):
         from tiltpile.sim.solver import empty_contacts
 
         n = radius.shape[0]
@@ -164,7 +165,8 @@ class System:
         self.perm = np.empty(0, np.int64)
         self.rng = rng
         self.params = dict(box_length=float(box_length), dt=float(dt), alert=float(alert), mu=float(mu),
-                           mu_wall=float(mu_wall), tol=float(tol), max_iter=int(max_iter), mode=int(mode))
+                           mu_wall=float(mu_wall), tol=float(tol), max_iter=int(max_iter), mode=int(mode),
+                           gravity=float(gravity))
         self.scalars: dict = {}
 
     @property
@@ -178,7 +180,7 @@ class System:
         (self.ci, self.cj, self.key, self.c, self.status, self.perm, rec.rebuilds) = advance(
             self.pos, self.rot, self.vel, self.radius, self.fixed, self.ref, self.ci, self.cj, self.key,
             self.c, self.status, self.rng, self.perm, p["box_length"], p["dt"], p["alert"], p["mu"],
-            p["mu_wall"], p["tol"], p["max_iter"], p["mode"], math.radians(theta0_deg),
+            p["mu_wall"], p["tol"], p["max_iter"], p["mode"], p["gravity"], math.radians(theta0_deg),
             math.radians(dtheta_deg), n_steps, rec.iterations, rec.residual, rec.overlap, rec.ke,
             rec.missed)
         return rec

@@ -1,0 +1,256 @@
+"""The run file: one HDF5 file per run. The only module that knows the layout.
+
+Layout (F frames, N grains including the fixed bottom row, C contacts over all frames)::
+
+    /                     attrs: tiltpile_version, seed, config (JSON text), config_hash,
+                                 box_length, jit (JSON text: numba flags), complete (bool)
+    /particles/radius     (N,)      float64  [d]
+    /particles/fixed      (N,)      bool     grains of the rough bottom row
+    /frames/step          (F,)      int64    global step (deposition steps included)
+    /frames/time          (F,)      float64  [sqrt(d/g)]
+    /frames/theta_deg     (F,)      float64  inclination of the box
+    /frames/position      (F, N, 2) float64  [d], box frame (x along the floor, y up)
+    /frames/rotation      (F, N)    float64  [rad]
+    /frames/velocity      (F, N, 2) float64  [sqrt(g d)]
+    /frames/omega         (F, N)    float64  [sqrt(g/d)]
+    /frames/iterations    (F,)      int64    NLGS sweeps of the frame's step
+    /frames/residual      (F,)      float64  final NLGS residual of the frame's step
+    /frames/ke            (F,)      float64  kinetic energy of the mobile grains [m g d]
+    /frames/max_overlap   (F,)      float64  largest overlap since the previous frame [d]
+    /frames/max_iterations(F,)      int64    most sweeps in a step since the previous frame
+    /frames/cap_hits      (F,)      int64    steps since the previous frame that hit max_iter
+    /frames/missed        (F,)      int64    steps where a grain outran the alert distance
+    /contacts/offset      (F+1,)    int64    contacts of frame k are rows offset[k]:offset[k+1]
+    /contacts/pair        (C, 2)    int32    grain ids (i < j); walls: -1 floor, -2 left (x = 0),
+                                             -3 right (x = L)
+    /contacts/force       (C, 2)    float64  normal, tangential force = impulse / dt [m g]
+    /contacts/status      (C,)      int8     0 open (touching, no force), 1 sticking,
+                                             2 sliding (fully mobilized, |f_t| = mu f_n)
+    /deposition           attrs: steps, time, ke_per_grain, height
+    /checkpoint           (only while incomplete) the simulator's full state and the frame count
+
+The file is written as ``NAME.part`` and renamed to ``NAME`` when complete, so a file with the
+final name is always whole. An interrupted ``.part`` file resumes from its checkpoint
+(``RunWriter.resume``): frames past the checkpoint are dropped and recomputed.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from pathlib import Path
+
+import h5py
+import numpy as np
+
+import tiltpile
+
+FRAME_SCALARS = {"step": np.int64, "time": np.float64, "theta_deg": np.float64,
+                 "iterations": np.int64, "residual": np.float64, "ke": np.float64,
+                 "max_overlap": np.float64, "max_iterations": np.int64, "cap_hits": np.int64,
+                 "missed": np.int64}
+CONTACT_SETS = {"pair": (np.int32, (2,)), "force": (np.float64, (2,)), "status": (np.int8, ())}
+
+
+class RunFileError(RuntimeError):
+    """A run file is missing, incomplete or not a tiltpile run."""
+
+
+def part_path(path: str | Path) -> Path:
+    path = Path(path)
+    return path.with_name(path.name + ".part")
+
+
+class RunWriter:
+    """Append frames and checkpoints to ``NAME.part``; ``finish`` renames it to ``NAME``."""
+
+    def __init__(self, path: str | Path, *, config_json: str, config_hash: str, seed: int,
+                 radius: np.ndarray, fixed: np.ndarray, box_length: float, jit: dict,
+                 _file: h5py.File | None = None):
+        self.path = Path(path)
+        self.part = part_path(self.path)
+        if _file is not None:
+            self.f = _file
+            return
+        self.path.parent.mkdir(parents=True, exist_ok=True)
+        f = self.f = h5py.File(self.part, "w")
+        f.attrs.update(tiltpile_version=tiltpile.__version__, seed=int(seed), config=config_json,
+                       config_hash=config_hash, box_length=float(box_length), jit=json.dumps(jit),
+                       complete=False)
+        n = radius.shape[0]
+        g = f.create_group("particles")
+        g["radius"] = np.asarray(radius, np.float64)
+        g["fixed"] = np.asarray(fixed, np.bool_)
+        fr = f.create_group("frames")
+        for name, dt in FRAME_SCALARS.items():
+            fr.create_dataset(name, (0,), dtype=dt, maxshape=(None,), chunks=(1024,))
+        for name, shape in (("position", (n, 2)), ("velocity", (n, 2)), ("rotation", (n,)), ("omega", (n,))):
+            fr.create_dataset(name, (0, *shape), dtype=np.float64, maxshape=(None, *shape),
+                              chunks=(1, *shape))
+        c = f.create_group("contacts")
+        c.create_dataset("offset", data=np.zeros(1, np.int64), maxshape=(None,), chunks=(1024,))
+        for name, (dt, shape) in CONTACT_SETS.items():
+            c.create_dataset(name, (0, *shape), dtype=dt, maxshape=(None, *shape), chunks=(16384, *shape))
+
+    @property
+    def n_frames(self) -> int:
+        return self.f["frames/step"].shape[0]
+
+    def write_deposition(self, summary) -> None:
+        g = self.f.require_group("deposition")
+        g.attrs.update(steps=int(summary.steps), time=float(summary.time),
+                       ke_per_grain=float(summary.ke_per_grain), height=float(summary.height))
+
+    def append(self, frame) -> None:
+        """Append one ``protocol.Frame``."""
+        fr, c = self.f["frames"], self.f["contacts"]
+        k = self.n_frames
+        for name in FRAME_SCALARS:
+            ds = fr[name]
+            ds.resize((k + 1,))
+            ds[k] = getattr(frame, name)
+        for name in ("position", "velocity", "rotation", "omega"):
+            ds = fr[name]
+            ds.resize((k + 1, *ds.shape[1:]))
+            ds[k] = getattr(frame, name)
+        off = c["offset"]
+        start = int(off[k])
+        m = frame.pair.shape[0]
+        for name in CONTACT_SETS:
+            ds = c[name]
+            ds.resize((start + m, *ds.shape[1:]))
+            ds[start:] = getattr(frame, name)
+        off.resize((k + 2,))
+        off[k + 1] = start + m
+
+    def checkpoint(self, state: dict) -> None:
+        """Store the simulator state as of the frames written so far, and flush to disk."""
+        if "checkpoint" in self.f:
+            del self.f["checkpoint"]
+        g = self.f.create_group("checkpoint")
+        for key, value in state.items():
+            if key == "scalars":
+                g.attrs["scalars"] = json.dumps(value)
+            else:
+                g.create_dataset(key, data=value)
+        g.attrs["n_frames"] = self.n_frames
+        self.f.flush()
+
+    def finish(self) -> Path:
+        if "checkpoint" in self.f:
+            del self.f["checkpoint"]
+        self.f.attrs["complete"] = True
+        self.f.close()
+        os.replace(self.part, self.path)
+        return self.path
+
+    def close(self) -> None:
+        """Close without completing (the .part file stays for a resume)."""
+        if self.f.id.valid:
+            self.f.close()
+
+    @classmethod
+    def resume(cls, path: str | Path, config_hash: str) -> tuple[RunWriter, dict] | None:
+        """Reopen ``NAME.part`` at its last checkpoint; None if there is nothing usable to resume.
+
+        Frames and contacts written after the checkpoint are truncated: the simulation redoes
+        them exactly. A ``.part`` of another configuration, or one that cannot be read (a process
+        killed while writing), is not resumed.
+        """
+        part = part_path(path)
+        if not part.exists():
+            return None
+        try:
+            f = h5py.File(part, "r+")
+        except (OSError, RuntimeError):
+            return None
+        try:
+            if f.attrs.get("config_hash") != config_hash or "checkpoint" not in f:
+                f.close()
+                return None
+            g = f["checkpoint"]
+            state = {k: g[k][()] for k in g}
+            state["scalars"] = json.loads(g.attrs["scalars"])
+            k = int(g.attrs["n_frames"])
+            fr, c = f["frames"], f["contacts"]
+            for name in fr:
+                fr[name].resize((k, *fr[name].shape[1:]))
+            c["offset"].resize((k + 1,))
+            end = int(c["offset"][k])
+            for name in CONTACT_SETS:
+                c[name].resize((end, *c[name].shape[1:]))
+        except (OSError, RuntimeError, KeyError):
+            f.close()
+            return None
+        return cls(path, config_json="", config_hash=config_hash, seed=0, radius=np.empty(0),
+                   fixed=np.empty(0), box_length=0.0, jit={}, _file=f), state
+
+
+class Run:
+    """Read-only view of a complete run file (``open_run``). Frame arrays are read on demand."""
+
+    def __init__(self, path: str | Path):
+        self.path = Path(path)
+        if not self.path.exists():
+            hint = " (an incomplete .part file exists)" if part_path(self.path).exists() else ""
+            raise RunFileError(f"no run file {self.path}{hint}")
+        try:
+            self.f = h5py.File(self.path, "r")
+        except OSError as e:
+            raise RunFileError(f"{self.path}: not a readable HDF5 file ({e})") from None
+        a = self.f.attrs
+        if "config" not in a or "frames" not in self.f:
+            self.f.close()
+            raise RunFileError(f"{self.path}: not a tiltpile run file")
+        self.seed = int(a["seed"])
+        self.config = json.loads(a["config"])
+        self.config_hash = str(a.get("config_hash", ""))
+        self.box_length = float(a["box_length"])
+        self.tiltpile_version = str(a["tiltpile_version"])
+        self.radius = self.f["particles/radius"][()]
+        self.fixed = self.f["particles/fixed"][()]
+        fr = self.f["frames"]
+        for name in FRAME_SCALARS:
+            setattr(self, name, fr[name][()])
+        self.n_frames = int(self.step.shape[0])
+        self.offset = self.f["contacts/offset"][()]
+        dep = self.f.get("deposition")
+        self.deposition = dict(dep.attrs) if dep is not None else {}
+
+    def _check(self, k: int) -> int:
+        if not -self.n_frames <= k < self.n_frames:
+            raise IndexError(f"frame {k} out of range: the run has {self.n_frames} frames")
+        return k % self.n_frames
+
+    def position(self, k: int) -> np.ndarray:
+        return self.f["frames/position"][self._check(k)]
+
+    def rotation(self, k: int) -> np.ndarray:
+        return self.f["frames/rotation"][self._check(k)]
+
+    def velocity(self, k: int) -> np.ndarray:
+        return self.f["frames/velocity"][self._check(k)]
+
+    def omega(self, k: int) -> np.ndarray:
+        return self.f["frames/omega"][self._check(k)]
+
+    def contacts(self, k: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(pair (C_k, 2) int32, force (C_k, 2) [f_n, f_t], status (C_k,) int8) of frame k."""
+        k = self._check(k)
+        a, b = int(self.offset[k]), int(self.offset[k + 1])
+        c = self.f["contacts"]
+        return c["pair"][a:b], c["force"][a:b], c["status"][a:b]
+
+    def close(self) -> None:
+        self.f.close()
+
+    def __enter__(self) -> Run:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+
+def open_run(path: str | Path) -> Run:
+    """Open a complete run file for reading (use as a context manager)."""
+    return Run(path)

@@ -1,0 +1,65 @@
+"""Configuration: presets load, bad input fails with the field name and the allowed range."""
+
+import pytest
+
+from tiltpile import config
+from tiltpile.config import ConfigError
+
+
+@pytest.mark.parametrize("name", config.PRESETS)
+def test_presets_load(name):
+    cfg = config.load(name)
+    assert cfg.scene.mu == 0.5
+    assert len(cfg.hash()) == 64
+
+
+def test_paper_preset_matches_the_paper():
+    cfg = config.load("paper")
+    assert cfg.scene.n == 4000 and cfg.scene.box_length == 120.0
+    assert cfg.protocol.tilt_per_step_deg == 0.001 and cfg.protocol.frame_every == 50
+    assert cfg.protocol.theta_max_deg == 30.0 and cfg.scene.polydispersity == 0.2
+
+
+@pytest.mark.parametrize("override, words", [
+    ("scene.mu=-0.1", ["scene.mu", "[0.0, inf)"]),
+    ("scene.n=0", ["scene.n", "[1,"]),
+    ("scene.polydispersity=1.0", ["scene.polydispersity", "[0.0, 1.0)"]),
+    ("solver.dt=0", ["solver.dt", "(0.0"]),
+    ("solver.dt=-1", ["solver.dt"]),
+    ("scene.n=2.5", ["scene.n", "integer"]),
+    ("scene.n=true", ["scene.n", "integer"]),
+    ("solver.sweep=sideways", ["solver.sweep", "forward"]),
+    ("solver.tol='small'", ["solver.tol", "number"]),
+    ("scene.colour=1", ["unknown key scene.colour"]),
+    ("physics.g=1", ["unknown section"]),
+    ("dt=1", ["section.key"]),
+])
+def test_bad_values_name_the_field_and_range(override, words):
+    with pytest.raises(ConfigError) as e:
+        config.load("smoke", overrides=[override])
+    for w in words:
+        assert w in str(e.value)
+
+
+def test_override_and_file(tmp_path):
+    f = tmp_path / "c.toml"
+    f.write_text("[solver]\ndt = 0.005\n")
+    cfg = config.load("smoke", f, ["solver.tol=1e-3"])
+    assert cfg.solver.dt == 0.005 and cfg.solver.tol == 1e-3
+    assert cfg.hash() != config.load("smoke").hash()
+    assert config.from_json(cfg.to_json()) == cfg
+
+
+def test_config_is_frozen():
+    cfg = config.load("smoke")
+    with pytest.raises(Exception):
+        cfg.scene.mu = 1.0
+
+
+def test_broken_toml(tmp_path):
+    f = tmp_path / "c.toml"
+    f.write_text("[solver\n")
+    with pytest.raises(ConfigError, match="not valid TOML"):
+        config.load("smoke", f)
+    with pytest.raises(ConfigError, match="not found"):
+        config.load("smoke", tmp_path / "missing.toml")
