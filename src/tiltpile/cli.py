@@ -1,4 +1,4 @@
-"""Command line: ``tiltpile simulate | bench`` (also ``python -m tiltpile``).
+"""Command line: ``tiltpile simulate | ensemble | observables | bench`` (also ``python -m tiltpile``).
 
 Every command validates its whole input first; on bad input it prints one line naming the
 problem and exits with status 2, having written nothing.
@@ -67,6 +67,19 @@ def cmd_bench(args) -> int:
     return 0
 
 
+def cmd_observables(args) -> int:
+    from tiltpile.analysis import compute_observables
+
+    d = Path(args.dir)
+    if not d.is_dir():
+        raise cfgmod.ConfigError(f"{d}: no such ensemble directory")
+    table = compute_observables(d, workers=args.workers, progress=not args.quiet, force=args.force)
+    if len(table) == 0:
+        raise cfgmod.ConfigError(f"{d}: no run_*.h5 files to analyse")
+    print(table.to_string(index=False))
+    return 0
+
+
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="tiltpile", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
@@ -88,6 +101,20 @@ def build_parser() -> argparse.ArgumentParser:
     b.add_argument("--seed", type=_seed, default=0)
     b.add_argument("--json", action="store_true", help="print one JSON object")
     b.set_defaults(func=cmd_bench)
+
+    o = sub.add_parser("observables", help="compute (incrementally) the observables of an ensemble")
+    o.add_argument("dir", help="ensemble directory holding run_*.h5")
+    o.add_argument("--workers", type=int, default=None, help="processes (default: one per core)")
+    o.add_argument("--force", action="store_true", help="recompute cached runs too")
+    o.add_argument("--quiet", action="store_true", help="no progress bar")
+    o.set_defaults(func=cmd_observables)
+
+    try:
+        from tiltpile.ensemble import add_parser as add_ensemble
+    except ImportError:  # pragma: no cover - the ensemble module is optional until it lands
+        add_ensemble = None
+    if add_ensemble is not None:
+        add_ensemble(sub)
     return p
 
 

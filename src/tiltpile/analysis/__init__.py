@@ -1,0 +1,86 @@
+"""Analysis of tiltpile runs: every quantity the paper measures, as pure functions.
+
+Modules (imports point down; none reads HDF5 except through :mod:`tiltpile.store` in
+``observables``):
+
+``contacts``     active / fully mobilized contacts, bulk layers, z, n_m, delta z_gen, lost
+                 contacts, failing grains, kinetic energy, displacements
+``clusters``     critical clusters, their size, z, n_m, delta z and orientation to gravity
+``avalanche``    quiet / avalanching periods, onsets, theta_m, theta - theta_m, cutoff robustness
+``stats``        log-binned densities, P(s) maximum-likelihood fit, C(tau), failure enhancement,
+                 delta z versus cluster size
+``observables``  per-run tables (per frame, per cluster), cached beside the runs
+
+Quick use::
+
+    from tiltpile.analysis import load_observables
+    frames, clusters = load_observables("data/default")
+"""
+
+from .avalanche import (
+    displacement_since_period_start,
+    onset_robustness,
+    onset_robustness_ensemble,
+    resegment,
+    segment_avalanches,
+    theta_relative_to_onset,
+)
+from .clusters import (
+    cluster_sizes,
+    cluster_table,
+    critical_clusters,
+    critical_grains,
+    gyration_axes,
+    orientation_to_gravity,
+)
+from .contacts import (
+    active_mask,
+    bottom_layer,
+    bulk_coordination,
+    bulk_mask,
+    contact_counts,
+    contact_gaps,
+    coordination,
+    displacement,
+    dz_gen,
+    dz_local,
+    failing_grains,
+    gravity_vector,
+    kinetic_energy,
+    lost_contacts,
+    mobilized_mask,
+    pair_keys,
+    rattler_mask,
+    top_layer,
+)
+from .observables import (
+    ANALYSIS_VERSION,
+    CLUSTER_COLUMNS,
+    DEFAULT_PARAMS,
+    FRAME_COLUMNS,
+    compute_observables,
+    frame_observables,
+    load_observables,
+    run_files,
+    run_observables,
+)
+from .stats import (
+    InsufficientDataError,
+    PowerLawCutoffFit,
+    cluster_peaks,
+    cluster_size_windows,
+    correlation_function,
+    correlation_function_ensemble,
+    density_2d,
+    discrete_log_binned_density,
+    dz_by_size,
+    dz_distribution,
+    failure_enhancement,
+    failure_enhancement_ensemble,
+    fit_power_law_cutoff,
+    log_binned_density,
+    sample_power_law_cutoff,
+)
+
+__all__ = [name for name in dir() if not name.startswith("_")
+           and name not in ("avalanche", "clusters", "contacts", "observables", "stats")]

@@ -1,0 +1,180 @@
+"""Avalanche segmentation of a run from its lost-contact fraction (paper, Fig. 2b, c).
+
+Frame convention: ``lost_fraction[k]`` is the fraction of the contacts active at frame k that are
+no longer active at frame k + 1 (forward difference; NaN for the last frame). So frame k is the
+last configuration before the contacts it lists are lost.
+
+* Frame k is *avalanching* when ``lost_fraction[k] > cutoff`` (default 2%), else *quiet*. A NaN
+  lost fraction (last frame, missing data) inherits the state of the previous frame (quiet at the
+  start). Optionally, quiet gaps shorter than ``merge_gap`` frames between two avalanching
+  stretches are merged into the avalanche (default 0: no merging).
+* An avalanche *onset* is the first frame of each maximal stretch of avalanching frames; the
+  failure angle of that avalanche is theta_m = theta[onset].
+* Periods: maximal stretches of frames in the same state, numbered 0, 1, ... in time.
+* theta - theta_m (column ``theta_to_onset``): for a quiet frame, relative to the *next* onset
+  (<= 0; NaN when no onset follows); for an avalanching frame, relative to the onset of the
+  avalanche it belongs to (>= 0).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from .contacts import displacement
+
+
+def segment_avalanches(lost_fraction: np.ndarray, cutoff: float = 0.02,
+                       merge_gap: int = 0) -> dict:
+    """Split a run into quiet and avalanching periods (module docstring).
+
+    lost_fraction (F,) in [0, 1] (NaN allowed); cutoff: threshold on the lost fraction;
+    merge_gap: quiet stretches strictly shorter than this, between avalanches, are merged.
+
+    Returns dict of arrays: avalanching (F,) bool, onsets (K,) int64 frame indices,
+    period (F,) int64 period id, period_start (F,) int64 first frame of each frame's period.
+    """
+    lf = np.asarray(lost_fraction, dtype=float)
+    nf = lf.size
+    av = np.zeros(nf, dtype=bool)
+    prev = False
+    for k in range(nf):                        # F ~ 1e3: a plain loop is fine and keeps NaN rule clear
+        if np.isfinite(lf[k]):
+            prev = lf[k] > cutoff
+        av[k] = prev
+    if merge_gap > 0 and nf:
+        starts, ends = _runs(~av)
+        for s, e in zip(starts, ends):
+            if s > 0 and e < nf and (e - s) < merge_gap:
+                av[s:e] = True
+    change = np.ones(nf, dtype=bool)
+    if nf:
+        change[1:] = av[1:] != av[:-1]
+    period = np.cumsum(change) - 1
+    starts = np.flatnonzero(change)
+    period_start = starts[period] if nf else np.zeros(0, dtype=np.int64)
+    onsets = starts[av[starts]] if nf else np.zeros(0, dtype=np.int64)
+    return {"avalanching": av, "onsets": onsets.astype(np.int64),
+            "period": period.astype(np.int64), "period_start": np.asarray(period_start, dtype=np.int64)}
+
+
+def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start (inclusive) and end (exclusive) indices of the True stretches of a bool array."""
+    m = np.concatenate([[False], np.asarray(mask, dtype=bool), [False]])
+    d = np.diff(m.astype(np.int8))
+    return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+
+
+def theta_relative_to_onset(theta_deg: np.ndarray, avalanching: np.ndarray,
+                            onsets: np.ndarray) -> dict:
+    """theta_m and theta - theta_m of every frame (module docstring).
+
+    theta_deg (F,), avalanching (F,) bool, onsets (K,) sorted frame indices.
+    Returns dict: onset_index (F,) int64 frame index of the reference onset (-1 if none),
+    theta_m (F,), theta_to_onset (F,) = theta - theta_m (NaN where no reference onset).
+    """
+    theta = np.asarray(theta_deg, dtype=float)
+    av = np.asarray(avalanching, dtype=bool)
+    onsets = np.asarray(onsets, dtype=np.int64)
+    k = np.arange(theta.size)
+    ref = np.full(theta.size, -1, dtype=np.int64)
+    if onsets.size:
+        nxt = np.searchsorted(onsets, k, side="left")          # first onset >= k
+        cur = np.searchsorted(onsets, k, side="right") - 1     # last onset <= k
+        has_next = nxt < onsets.size
+        ref[~av & has_next] = onsets[nxt[~av & has_next]]
+        ref[av] = onsets[np.maximum(cur[av], 0)]
+    theta_m = np.where(ref >= 0, theta[np.maximum(ref, 0)], np.nan)
+    return {"onset_index": ref, "theta_m": theta_m, "theta_to_onset": theta - theta_m}
+
+
+def onset_robustness(lost_fraction: np.ndarray, theta_deg: np.ndarray,
+                     cutoffs=(0.01, 0.02, 0.03, 0.04), reference: float = 0.02,
+                     max_shift: int = 10, merge_gap: int = 0) -> pd.DataFrame:
+    """How much the avalanche onsets move when the cutoff changes (paper: 1-4%, 1-2 frames).
+
+    Each onset found with the ``reference`` cutoff is matched to the nearest onset found with every
+    cutoff in ``cutoffs``; a match further than ``max_shift`` frames counts as missing (NaN).
+
+    Returns a DataFrame with one row per (reference onset, cutoff): onset (index of the reference
+    onset in the run, 0..K-1), ref_frame, cutoff, frame, shift_frames (frame - ref_frame),
+    shift_deg (theta[frame] - theta[ref_frame]).
+    """
+    theta = np.asarray(theta_deg, dtype=float)
+    ref = segment_avalanches(lost_fraction, reference, merge_gap)["onsets"]
+    rows = []
+    for c in cutoffs:
+        on = segment_avalanches(lost_fraction, c, merge_gap)["onsets"]
+        for q, f0 in enumerate(ref):
+            if on.size:
+                f = on[np.argmin(np.abs(on - f0))]
+                ok = abs(f - f0) <= max_shift
+            else:
+                ok = False
+            rows.append({"onset": q, "ref_frame": int(f0), "cutoff": float(c),
+                         "frame": float(f) if ok else np.nan,
+                         "shift_frames": float(f - f0) if ok else np.nan,
+                         "shift_deg": float(theta[f] - theta[f0]) if ok else np.nan})
+    return pd.DataFrame(rows, columns=["onset", "ref_frame", "cutoff", "frame", "shift_frames",
+                                       "shift_deg"])
+
+
+def onset_robustness_ensemble(frames: pd.DataFrame, cutoffs=(0.01, 0.02, 0.03, 0.04),
+                              reference: float = 0.02, max_shift: int = 10,
+                              merge_gap: int = 0) -> pd.DataFrame:
+    """:func:`onset_robustness` for every run of a per-frame table (columns run, frame,
+    theta_deg, lost_fraction); the result gains a ``run`` column."""
+    parts = []
+    for run, g in frames.sort_values(["run", "frame"]).groupby("run", sort=False):
+        r = onset_robustness(g["lost_fraction"].to_numpy(), g["theta_deg"].to_numpy(), cutoffs,
+                             reference, max_shift, merge_gap)
+        r.insert(0, "run", run)
+        parts.append(r)
+    return pd.concat(parts, ignore_index=True) if parts else pd.DataFrame()
+
+
+def displacement_since_period_start(positions: np.ndarray, period_start: np.ndarray,
+                                    select: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
+    """Mean and max grain displacement since the first frame of the current period.
+
+    The paper checks that grains stay caged (< 1% of d) during the quiet period before an
+    avalanche; with ``period_start`` from :func:`segment_avalanches`, a quiet frame is compared to
+    the first frame of its quiet period (an avalanching frame to its avalanche's onset).
+
+    positions (F, N, 2) in d; period_start (F,) int; select (N,) bool grains to include
+    (default all). Returns (mean (F,), max (F,)) in d.
+    """
+    pos = np.asarray(positions, dtype=float)
+    ps = np.asarray(period_start, dtype=np.int64)
+    if select is not None:
+        pos = pos[:, np.asarray(select, dtype=bool)]
+    if pos.shape[1] == 0:
+        nan = np.full(pos.shape[0], np.nan)
+        return nan, nan.copy()
+    disp = displacement(pos, pos[ps])           # (F, N)
+    return disp.mean(axis=1), disp.max(axis=1)
+
+
+def resegment(frames: pd.DataFrame, cutoff: float = 0.02, merge_gap: int = 0) -> pd.DataFrame:
+    """Recompute avalanching / onset / theta_m / theta_to_onset of a per-frame table.
+
+    frames: DataFrame with columns run, frame, theta_deg, lost_fraction (as from
+    :func:`tiltpile.analysis.load_observables`). Returns a copy with columns avalanching, onset
+    (bool: frame is an onset), period, theta_m, theta_to_onset recomputed for ``cutoff``.
+    (Displacement columns are not recomputed.)
+    """
+    out = frames.sort_values(["run", "frame"]).copy()
+    parts = []
+    for _, g in out.groupby("run", sort=False):
+        seg = segment_avalanches(g["lost_fraction"].to_numpy(), cutoff, merge_gap)
+        rel = theta_relative_to_onset(g["theta_deg"].to_numpy(), seg["avalanching"], seg["onsets"])
+        onset = np.zeros(len(g), dtype=bool)
+        onset[seg["onsets"]] = True
+        parts.append(pd.DataFrame({"avalanching": seg["avalanching"], "onset": onset,
+                                   "period": seg["period"], "theta_m": rel["theta_m"],
+                                   "theta_to_onset": rel["theta_to_onset"]}, index=g.index))
+    new = pd.concat(parts) if parts else pd.DataFrame(
+        columns=["avalanching", "onset", "period", "theta_m", "theta_to_onset"])
+    for c in new.columns:
+        out[c] = new[c]
+    return out

@@ -1,0 +1,334 @@
+"""Per-frame contact observables: active and fully mobilized contacts, bulk selection,
+coordination z and mobilization n_m, generalized isostaticity, lost contacts, failing grains,
+kinetic energy and displacements.
+
+Conventions (shared by the whole ``analysis`` package)
+------------------------------------------------------
+* A frame has N grains (mobile and fixed). Contacts are given as ``pair`` (C, 2) int, with
+  ``pair[:, 0] = i >= 0`` a grain and ``pair[:, 1] = j`` either a grain (``i < j``) or a wall:
+  ``-1`` floor (y = 0), ``-2`` left wall (x = 0), ``-3`` right wall (x = L).
+* ``force`` (C, 2) float: ``[f_n, f_t]``; ``status`` (C,) int8: 0 open (touching, zero force),
+  1 sticking, 2 sliding (fully mobilized).
+* Units: mean diameter d = 1, g = 1, density 1 (mass = pi r^2, moment of inertia m r^2 / 2);
+  lengths in d, velocities in sqrt(g d), energies in (density d^2) g d = 1.
+* d = 2 throughout (disks).
+
+Counting rule (paper: z = 2 N_c / N, n_m = N_m / N)
+---------------------------------------------------
+Each grain i has a contact number ``z_i`` (its active contacts, f_n > 0, with *anything*:
+grains, fixed grains, walls) and a mobilization number ``m_i`` (its fully mobilized active
+contacts). Over a set S of N grains::
+
+    z   = (1/N) sum_{i in S} z_i          (= 2 N_c / N)
+    n_m = (1/N) sum_{i in S} m_i / 2      (= N_m / N)
+
+so a contact between two grains of S counts once in N_c (once in N_m if mobilized), and a
+contact between a grain of S and anything outside S (a non-bulk grain, a fixed grain, a wall)
+counts one half. For the whole packing this is the paper's definition; for a subset it is the
+natural per-particle average (a single grain with one mobilized contact has n_m = 1/2, as in the
+paper's remark that cluster grains have n_m >= 0.5).
+
+Rattlers: a mobile grain with fewer than ``min_contacts`` (default 2) active contacts is a
+rattler; it is removed from S and its contacts are removed from the network before counting
+(single pass, not iterated). Fixed grains are never counted.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+from numba import njit
+
+WALL_FLOOR = -1
+WALL_LEFT = -2
+WALL_RIGHT = -3
+
+SLIDING = 2
+
+
+# ----------------------------------------------------------------------------------------------
+# contact classification
+
+
+def active_mask(force: np.ndarray) -> np.ndarray:
+    """Active contacts: normal force f_n > 0.
+
+    force : (C, 2) float [f_n, f_t].  Returns (C,) bool.
+    """
+    force = np.asarray(force, dtype=float).reshape(-1, 2)
+    return force[:, 0] > 0.0
+
+
+def mobilized_mask(force: np.ndarray, status: np.ndarray | None = None, mu=0.5,
+                   eps: float | None = None) -> np.ndarray:
+    """Fully mobilized (critical) contacts.
+
+    Default (``eps is None``): the solver's sliding flag, ``status == 2``, on active contacts.
+    Alternative (``eps`` given): the Coulomb threshold ``|f_t| >= mu f_n (1 - eps)`` on active
+    contacts (what one would use for experimental data; ``eps`` absorbs solver tolerance).
+
+    force : (C, 2) [f_n, f_t]; status : (C,) int8 or None (required when eps is None);
+    mu : float or (C,) array (e.g. grain and wall friction per contact); eps : float in [0, 1).
+    Returns (C,) bool.
+    """
+    force = np.asarray(force, dtype=float).reshape(-1, 2)
+    act = force[:, 0] > 0.0
+    if eps is None:
+        if status is None:
+            raise ValueError("mobilized_mask: status is required unless a threshold eps is given")
+        return act & (np.asarray(status) == SLIDING)
+    if not 0.0 <= eps < 1.0:
+        raise ValueError(f"mobilized_mask: eps must be in [0, 1), got {eps}")
+    return act & (np.abs(force[:, 1]) >= np.asarray(mu) * force[:, 0] * (1.0 - eps))
+
+
+def contact_counts(n: int, pair: np.ndarray, mask: np.ndarray) -> np.ndarray:
+    """Number of selected contacts per grain.
+
+    n : number of grains; pair : (C, 2) int (j < 0 for walls); mask : (C,) bool selecting the
+    contacts to count (e.g. active, or mobilized). A grain-grain contact counts for both grains,
+    a wall contact for its grain only. Returns (n,) int64.
+    """
+    pair = np.asarray(pair).reshape(-1, 2)
+    mask = np.asarray(mask, dtype=bool)
+    i = pair[mask, 0]
+    j = pair[mask, 1]
+    counts = np.bincount(i, minlength=n)
+    counts += np.bincount(j[j >= 0], minlength=n)
+    return counts[:n].astype(np.int64)
+
+
+def coordination(z_i: np.ndarray, m_i: np.ndarray, select: np.ndarray) -> tuple[float, float, int]:
+    """z and n_m over a set of grains (module docstring, counting rule).
+
+    z_i, m_i : (N,) per-grain active and mobilized contact numbers; select : (N,) bool.
+    Returns (z, n_m, N_selected); z and n_m are NaN when no grain is selected.
+    """
+    select = np.asarray(select, dtype=bool)
+    n = int(select.sum())
+    if n == 0:
+        return float("nan"), float("nan"), 0
+    return float(z_i[select].sum() / n), float(m_i[select].sum() / (2.0 * n)), n
+
+
+def dz_gen(z, n_m, d: int = 2):
+    """Distance to generalized isostaticity, paper Eq. (1): z - (d + 1) - 2 n_m / d.
+
+    In 2D: delta z_gen = z - 3 - n_m. Works on scalars or arrays.
+    """
+    return np.asarray(z) - (d + 1) - 2.0 * np.asarray(n_m) / d
+
+
+def dz_local(z, n_m, d: int = 2):
+    """Cluster stability margin delta z = z - 2 n_m / d (paper, Fig. 5). In 2D: z - n_m."""
+    return np.asarray(z) - 2.0 * np.asarray(n_m) / d
+
+
+def rattler_mask(z_i: np.ndarray, fixed: np.ndarray, min_contacts: int = 2) -> np.ndarray:
+    """Rattlers: mobile grains with fewer than ``min_contacts`` active contacts. (N,) bool."""
+    return (~np.asarray(fixed, dtype=bool)) & (np.asarray(z_i) < min_contacts)
+
+
+def drop_contacts_of(pair: np.ndarray, mask: np.ndarray, grains: np.ndarray) -> np.ndarray:
+    """``mask`` with every contact touching a grain flagged in ``grains`` (N,) bool switched off."""
+    pair = np.asarray(pair).reshape(-1, 2)
+    i, j = pair[:, 0], pair[:, 1]
+    hit = grains[i] | ((j >= 0) & grains[np.maximum(j, 0)])
+    return np.asarray(mask, dtype=bool) & ~hit
+
+
+# ----------------------------------------------------------------------------------------------
+# geometry: gaps and layers
+
+
+def contact_gaps(pair: np.ndarray, position: np.ndarray, radius: np.ndarray,
+                 box_length: float) -> np.ndarray:
+    """Surface gap of each listed contact (negative = overlap), in d.
+
+    grain-grain: |x_i - x_j| - r_i - r_j; floor: y_i - r_i; left wall: x_i - r_i;
+    right wall: L - x_i - r_i. pair (C, 2); position (N, 2); radius (N,). Returns (C,).
+    """
+    pair = np.asarray(pair).reshape(-1, 2)
+    i, j = pair[:, 0], pair[:, 1]
+    xi = position[i]
+    ri = radius[i]
+    jj = np.maximum(j, 0)
+    gg = np.linalg.norm(xi - position[jj], axis=1) - ri - radius[jj]
+    gap = np.where(j >= 0, gg, np.nan)
+    gap = np.where(j == WALL_FLOOR, xi[:, 1] - ri, gap)
+    gap = np.where(j == WALL_LEFT, xi[:, 0] - ri, gap)
+    gap = np.where(j == WALL_RIGHT, box_length - xi[:, 0] - ri, gap)
+    return gap
+
+
+@njit(cache=True)
+def _surface_hits(x, y, r, x0, spacing, n_rays):
+    """For vertical rays at x0 + k*spacing, the index of the grain hit first from above."""
+    best_h = np.full(n_rays, -np.inf)
+    best_i = np.full(n_rays, -1, dtype=np.int64)
+    for i in range(x.shape[0]):
+        k_lo = int(np.ceil((x[i] - r[i] - x0) / spacing))
+        k_hi = int(np.floor((x[i] + r[i] - x0) / spacing))
+        if k_lo < 0:
+            k_lo = 0
+        if k_hi > n_rays - 1:
+            k_hi = n_rays - 1
+        for k in range(k_lo, k_hi + 1):
+            dx = x0 + k * spacing - x[i]
+            h2 = r[i] * r[i] - dx * dx
+            if h2 < 0.0:
+                continue
+            h = y[i] + np.sqrt(h2)
+            if h > best_h[k]:
+                best_h[k] = h
+                best_i[k] = i
+    return best_i
+
+
+def top_layer(position: np.ndarray, radius: np.ndarray, fixed: np.ndarray, box_length: float,
+              ray_spacing: float = 0.1) -> np.ndarray:
+    """Top single layer: mobile grains exposed to the free surface.
+
+    Rule: cast vertical rays downward (box frame, -y) at x = (k + 1/2) * ray_spacing across the
+    box [0, L]; a grain is in the top layer if it is the first grain hit by at least one ray,
+    i.e. it has a point of its upper boundary that nothing lies above. With ray_spacing = 0.1 d
+    every grain with an exposed arc wider than ~0.1 d is found (small grains sitting in the dips
+    between two large surface grains included). During avalanches, airborne grains shadow the
+    grains below them; that is accepted (the bulk is only interpreted in quiet periods).
+
+    position (N, 2) in d (box frame), radius (N,), fixed (N,) bool. Returns (N,) bool.
+    """
+    n_rays = max(1, int(np.ceil(box_length / ray_spacing)))
+    x0 = 0.5 * ray_spacing
+    pos = np.ascontiguousarray(position, dtype=np.float64)
+    hits = _surface_hits(pos[:, 0].copy(), pos[:, 1].copy(),
+                         np.ascontiguousarray(radius, dtype=np.float64), x0, float(ray_spacing), n_rays)
+    top = np.zeros(len(radius), dtype=bool)
+    top[hits[hits >= 0]] = True
+    return top & ~np.asarray(fixed, dtype=bool)
+
+
+def bottom_layer(pair: np.ndarray, gaps: np.ndarray, fixed: np.ndarray,
+                 touch_tol: float = 0.05) -> np.ndarray:
+    """Bottom single layer: mobile grains touching the rough bottom.
+
+    Rule: a mobile grain is in the bottom layer if it has a listed contact (any status) with a
+    fixed grain or with the floor whose surface gap is <= ``touch_tol`` (d). The gap test keeps
+    candidate contacts of the solver's alert distance out.
+
+    pair (C, 2); gaps (C,) from :func:`contact_gaps`; fixed (N,) bool. Returns (N,) bool.
+    """
+    pair = np.asarray(pair).reshape(-1, 2)
+    fixed = np.asarray(fixed, dtype=bool)
+    i, j = pair[:, 0], pair[:, 1]
+    touching = np.asarray(gaps) <= touch_tol
+    to_bottom = touching & ((j == WALL_FLOOR) | ((j >= 0) & fixed[np.maximum(j, 0)]))
+    # with i < j for grain pairs, a fixed grain may also be pair[:, 0]
+    bottom = np.zeros(len(fixed), dtype=bool)
+    bottom[i[to_bottom]] = True
+    other = touching & (j >= 0) & fixed[i]
+    bottom[j[other]] = True
+    return bottom & ~fixed
+
+
+def bulk_mask(position: np.ndarray, radius: np.ndarray, fixed: np.ndarray, pair: np.ndarray,
+              box_length: float, ray_spacing: float = 0.1, touch_tol: float = 0.05) -> np.ndarray:
+    """Bulk grains: mobile grains that are neither in the top nor in the bottom single layer.
+
+    See :func:`top_layer` and :func:`bottom_layer` for how the layers are found. Returns (N,) bool.
+    """
+    gaps = contact_gaps(pair, position, radius, box_length)
+    bot = bottom_layer(pair, gaps, fixed, touch_tol)
+    top = top_layer(position, radius, fixed, box_length, ray_spacing)
+    return ~np.asarray(fixed, dtype=bool) & ~bot & ~top
+
+
+def bulk_coordination(pair: np.ndarray, active: np.ndarray, mobilized: np.ndarray,
+                      bulk: np.ndarray, fixed: np.ndarray, min_contacts: int = 2) -> dict:
+    """z, n_m and delta z_gen of a set of grains, with rattlers removed (module docstring).
+
+    pair (C, 2); active, mobilized (C,) bool; bulk (N,) bool selection (usually
+    :func:`bulk_mask`); fixed (N,) bool; min_contacts: rattler threshold (0 disables).
+    Returns dict with z, n_m, dz_gen (paper Eq. 1, 2D: z - 3 - n_m), n (grains counted),
+    n_rattlers (selected grains removed as rattlers), and the per-grain arrays z_i, m_i (after
+    rattler removal) and rattler (N,) bool.
+    """
+    n = len(fixed)
+    z0 = contact_counts(n, pair, active)
+    ratt = rattler_mask(z0, fixed, min_contacts)
+    act = drop_contacts_of(pair, active, ratt)
+    mob = act & np.asarray(mobilized, dtype=bool)
+    z_i = contact_counts(n, pair, act)
+    m_i = contact_counts(n, pair, mob)
+    sel = np.asarray(bulk, dtype=bool) & ~ratt
+    z, n_m, ncount = coordination(z_i, m_i, sel)
+    return {"z": z, "n_m": n_m, "dz_gen": float(dz_gen(z, n_m)), "n": ncount,
+            "n_rattlers": int((np.asarray(bulk, dtype=bool) & ratt).sum()),
+            "z_i": z_i, "m_i": m_i, "rattler": ratt}
+
+
+# ----------------------------------------------------------------------------------------------
+# lost contacts and failing grains
+
+
+def pair_keys(pair: np.ndarray, n: int) -> np.ndarray:
+    """Unique int64 key of each contact pair (i, j), j in [-3, n): i * (n + 3) + (j + 3)."""
+    pair = np.asarray(pair, dtype=np.int64).reshape(-1, 2)
+    return pair[:, 0] * (n + 3) + (pair[:, 1] + 3)
+
+
+def lost_contacts(pair_a: np.ndarray, active_a: np.ndarray, pair_b: np.ndarray,
+                  active_b: np.ndarray, n: int) -> np.ndarray:
+    """Contacts lost between two frames a -> b: active at a and not active at b.
+
+    Contacts are matched by particle pair (i, j), so the order of the contact lists may differ
+    between frames; a pair absent from frame b's list or present there with f_n = 0 is lost.
+
+    pair_a (Ca, 2), active_a (Ca,) bool, pair_b (Cb, 2), active_b (Cb,) bool, n grains.
+    Returns (Ca,) bool: lost[c] for each contact c of frame a (False for inactive ones).
+    """
+    ka = pair_keys(pair_a, n)
+    kb = pair_keys(pair_b, n)[np.asarray(active_b, dtype=bool)]
+    return np.asarray(active_a, dtype=bool) & ~np.isin(ka, kb)
+
+
+def failing_grains(n: int, pair: np.ndarray, lost: np.ndarray,
+                   fixed: np.ndarray | None = None) -> np.ndarray:
+    """Failing grains: grains that are an end of at least one lost contact. (N,) bool.
+
+    Fixed grains are never failing (when ``fixed`` is given).
+    """
+    f = contact_counts(n, pair, lost) > 0
+    if fixed is not None:
+        f &= ~np.asarray(fixed, dtype=bool)
+    return f
+
+
+# ----------------------------------------------------------------------------------------------
+# kinematics
+
+
+def kinetic_energy(radius: np.ndarray, velocity: np.ndarray,
+                   omega: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Per-grain translational and rotational kinetic energy of disks of density 1.
+
+    m = pi r^2, I = m r^2 / 2;  e_t = m |v|^2 / 2,  e_r = I omega^2 / 2.
+    radius (N,) d; velocity (N, 2) sqrt(g d); omega (N,) sqrt(g/d). Returns two (N,) arrays.
+    """
+    r = np.asarray(radius, dtype=float)
+    m = np.pi * r * r
+    v = np.asarray(velocity, dtype=float).reshape(-1, 2)
+    e_t = 0.5 * m * (v[:, 0] ** 2 + v[:, 1] ** 2)
+    e_r = 0.25 * m * r * r * np.asarray(omega, dtype=float) ** 2
+    return e_t, e_r
+
+
+def displacement(position: np.ndarray, reference: np.ndarray) -> np.ndarray:
+    """|x_i - x_i^ref| per grain, in d. position, reference (N, 2). Returns (N,)."""
+    dx = np.asarray(position, dtype=float) - np.asarray(reference, dtype=float)
+    return np.sqrt((dx * dx).sum(axis=-1))
+
+
+def gravity_vector(theta_deg) -> np.ndarray:
+    """Unit gravity in the box frame, g = (sin theta, -cos theta); (2,) or (..., 2)."""
+    t = np.deg2rad(np.asarray(theta_deg, dtype=float))
+    return np.stack([np.sin(t), -np.cos(t)], axis=-1)

@@ -1,0 +1,109 @@
+"""Avalanche segmentation on synthetic lost-fraction series."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tiltpile.analysis import avalanche as av
+
+Q = 0.001   # a quiet frame's lost fraction
+
+
+def _series():
+    # frames 0-9 quiet, 10-12 avalanche, 13-17 quiet, 18-19 avalanche, 20-22 quiet, 23 last (NaN)
+    lf = np.r_[[Q] * 10, [0.05, 0.1, 0.03], [0.005] * 5, [0.5, 0.2], [Q] * 3, [np.nan]]
+    return lf, 0.05 * np.arange(lf.size)
+
+
+def test_segmentation_periods_and_onsets():
+    lf, theta = _series()
+    seg = av.segment_avalanches(lf, cutoff=0.02)
+    expect = np.zeros(lf.size, bool)
+    expect[10:13] = True
+    expect[18:20] = True
+    assert np.array_equal(seg["avalanching"], expect)
+    assert seg["onsets"].tolist() == [10, 18]
+    assert seg["period"].tolist() == [0] * 10 + [1] * 3 + [2] * 5 + [3] * 2 + [4] * 4
+    assert seg["period_start"][[0, 9, 10, 12, 13, 19, 23]].tolist() == [0, 0, 10, 10, 13, 18, 20]
+
+
+def test_theta_relative_to_next_onset():
+    lf, theta = _series()
+    seg = av.segment_avalanches(lf, cutoff=0.02)
+    rel = av.theta_relative_to_onset(theta, seg["avalanching"], seg["onsets"])
+    t = rel["theta_to_onset"]
+    assert t[5] == pytest.approx(theta[5] - theta[10]) and t[5] == pytest.approx(-0.25)
+    assert t[9] == pytest.approx(-0.05)
+    assert t[11] == pytest.approx(0.05)                   # inside the first avalanche
+    assert t[13] == pytest.approx(theta[13] - theta[18])  # quiet: relative to the next onset
+    assert np.isnan(t[20]) and np.isnan(t[23])            # no onset follows
+    assert rel["theta_m"][0] == pytest.approx(theta[10])
+    assert rel["onset_index"][[0, 12, 17, 19, 21]].tolist() == [10, 10, 18, 18, -1]
+
+
+def test_cutoff_moves_the_onset():
+    lf, _ = _series()
+    # 3%: frame 12 (0.03) is not above the cutoff; 6%: frame 10 (0.05) neither
+    assert av.segment_avalanches(lf, 0.03)["avalanching"][10:13].tolist() == [True, True, False]
+    assert av.segment_avalanches(lf, 0.06)["onsets"].tolist() == [11, 18]
+
+
+def test_nan_inherits_the_state_of_the_previous_frame():
+    lf = np.array([Q, 0.3, np.nan, Q, np.nan])
+    assert av.segment_avalanches(lf)["avalanching"].tolist() == [False, True, True, False, False]
+
+
+def test_merge_gap_joins_flickering_avalanche():
+    lf = np.r_[[Q] * 5, 0.1, Q, 0.1, Q, Q, 0.1, [Q] * 3]
+    assert av.segment_avalanches(lf)["onsets"].tolist() == [5, 7, 10]
+    seg = av.segment_avalanches(lf, merge_gap=2)
+    assert seg["onsets"].tolist() == [5, 10]
+    assert seg["avalanching"][5:8].all()
+    assert av.segment_avalanches(lf, merge_gap=3)["onsets"].tolist() == [5]
+
+
+def test_onset_robustness_on_a_ramp():
+    # lost fraction ramps through the cutoffs one frame at a time
+    lf = np.r_[[Q] * 20, 0.015, 0.025, 0.035, 0.045, 0.3, 0.3, [Q] * 5]
+    theta = 0.05 * np.arange(lf.size)
+    rob = av.onset_robustness(lf, theta, cutoffs=(0.01, 0.02, 0.03, 0.04), reference=0.02)
+    assert rob["ref_frame"].tolist() == [21] * 4
+    assert rob["frame"].tolist() == [20, 21, 22, 23]
+    assert rob["shift_frames"].tolist() == [-1, 0, 1, 2]
+    assert rob["shift_deg"].to_numpy() == pytest.approx([-0.05, 0.0, 0.05, 0.1])
+    far = av.onset_robustness(lf, theta, cutoffs=(0.2,), max_shift=1)
+    assert np.isnan(far["frame"].iloc[0])                   # nearest onset (24) is 3 frames away
+
+
+def test_displacement_since_period_start():
+    pos = np.zeros((5, 3, 2))
+    pos[1, 0] = [0.01, 0.0]          # quiet period 0-2: grain 0 creeps
+    pos[2, 0] = [0.02, 0.0]
+    pos[3, 1] = [1.0, 0.0]           # period 3-4 starts at frame 3
+    pos[4, 1] = [1.0, 0.5]
+    mean, mx = av.displacement_since_period_start(pos, np.array([0, 0, 0, 3, 3]))
+    assert mx.tolist() == pytest.approx([0.0, 0.01, 0.02, 0.0, 0.5])
+    assert mean.tolist() == pytest.approx([0.0, 0.01 / 3, 0.02 / 3, 0.0, 0.5 / 3])
+
+
+def test_resegment_a_frame_table():
+    lf, theta = _series()
+    frames = pd.DataFrame({"run": np.r_[[1] * lf.size, [2] * 4], "frame": np.r_[np.arange(lf.size), np.arange(4)],
+                           "theta_deg": np.r_[theta, theta[:4]], "lost_fraction": np.r_[lf, [Q, 0.5, Q, Q]]})
+    out = av.resegment(frames, cutoff=0.02)
+    r1 = out[out["run"] == 1]
+    assert np.flatnonzero(r1["onset"].to_numpy()).tolist() == [10, 18]
+    r2 = out[out["run"] == 2]
+    assert r2["avalanching"].tolist() == [False, True, False, False]
+    assert r2["theta_to_onset"].iloc[0] == pytest.approx(-0.05)
+
+
+def test_onset_robustness_ensemble_per_run():
+    lf = np.r_[[Q] * 20, 0.015, 0.025, 0.035, 0.045, 0.3, 0.3, [Q] * 5]
+    n = lf.size
+    frames = pd.DataFrame({"run": np.r_[[3] * n, [4] * n], "frame": np.r_[np.arange(n), np.arange(n)],
+                           "theta_deg": np.r_[0.05 * np.arange(n), 0.05 * np.arange(n)],
+                           "lost_fraction": np.r_[lf, np.roll(lf, -5)]})
+    rob = av.onset_robustness_ensemble(frames)
+    assert rob.groupby("run")["ref_frame"].first().tolist() == [21, 16]
+    assert rob.groupby("run")["shift_frames"].apply(list).tolist() == [[-1, 0, 1, 2]] * 2

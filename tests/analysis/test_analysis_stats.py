@@ -1,0 +1,193 @@
+"""Statistics with known answers: densities, the P(s) fit, C(tau), failure enhancement, delta z."""
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tiltpile.analysis import stats as st
+
+
+# ---------------------------------------------------------------------------------------------
+# P(s) = s^-delta exp(-s/xi)
+
+@pytest.mark.parametrize("delta, xi, s_min, n", [(2.5, 40.0, 1, 20000), (1.5, 200.0, 2, 5000),
+                                                 (0.5, 10.0, 1, 5000)])
+def test_fit_recovers_parameters_within_its_error_bars(delta, xi, s_min, n):
+    s = st.sample_power_law_cutoff(delta, xi, n, s_min=s_min, rng=12345)
+    assert s.min() >= s_min
+    fit = st.fit_power_law_cutoff(s, s_min=s_min)
+    assert fit.n == n and not fit.delta_fixed
+    assert abs(fit.delta - delta) < 3 * fit.delta_err
+    assert abs(fit.xi - xi) < 3 * fit.xi_err
+    # the error bars are informative, not just wide
+    assert fit.delta_err < 0.1
+    assert fit.xi_err < 0.5 * xi
+    assert fit.pmf(np.arange(s_min, 200_000)).sum() == pytest.approx(1.0, abs=1e-9)
+
+
+def test_fit_with_fixed_delta():
+    s = st.sample_power_law_cutoff(2.5, 20.0, 20000, rng=7)
+    fit = st.fit_power_law_cutoff(s, delta=2.5)
+    assert fit.delta == 2.5 and fit.delta_fixed and fit.delta_err == 0.0
+    assert abs(fit.xi - 20.0) < 3 * fit.xi_err and fit.xi_err < 5.0
+
+
+def test_fit_error_bars_have_one_sigma_coverage():
+    # over 40 independent samples the true value lies within one sigma ~68% of the time
+    inside_d, inside_lam = [], []
+    for seed in range(40):
+        fit = st.fit_power_law_cutoff(st.sample_power_law_cutoff(1.5, 50.0, 2000, rng=seed))
+        inside_d.append(abs(fit.delta - 1.5) < fit.delta_err)
+        lam_err = fit.xi_err / fit.xi**2
+        inside_lam.append(abs(1 / fit.xi - 1 / 50.0) < lam_err)
+    assert 0.5 <= np.mean(inside_d) <= 0.86
+    assert 0.5 <= np.mean(inside_lam) <= 0.86
+
+
+def test_fit_refuses_too_few_samples():
+    s = st.sample_power_law_cutoff(2.5, 40.0, 30, rng=1)
+    with pytest.raises(st.InsufficientDataError, match="only 30 sizes.*need at least 50"):
+        st.fit_power_law_cutoff(s)
+    with pytest.raises(st.InsufficientDataError, match="distinct"):
+        st.fit_power_law_cutoff(np.r_[[1] * 100, [2] * 100])           # two values, two parameters
+    with pytest.raises(st.InsufficientDataError):
+        st.fit_power_law_cutoff(np.arange(1, 200), s_min=190)          # only 10 above s_min
+    with pytest.raises(ValueError, match="integers"):
+        st.fit_power_law_cutoff(np.array([1.5, 2.0] * 50))
+
+
+# ---------------------------------------------------------------------------------------------
+# densities
+
+def test_log_binned_density_of_log_uniform_samples():
+    rng = np.random.default_rng(0)
+    x = 10 ** rng.uniform(0.0, 2.0, 100_000)
+    x = np.r_[x, np.zeros(1000)]                               # zeros: dropped, still normalised
+    df = st.log_binned_density(x, bins_per_decade=10, xmin=1.0, xmax=100.0)
+    assert len(df) == 20
+    assert (df["density"] * (df["right"] - df["left"])).sum() == pytest.approx(100 / 101)
+    expect = (100 / 101) / (df["center"] * np.log(100.0))     # p(x) = 1 / (x ln 100)
+    assert np.abs(df["density"] / expect - 1).max() < 0.06     # ~5000 per bin: 1.4% noise
+    assert df.attrs["n_nonpositive"] == 1000
+
+
+def test_discrete_log_binned_density_normalised_per_integer():
+    s = np.r_[[1] * 50, [2] * 25, [3] * 10, [10] * 10, [100] * 5]
+    df = st.discrete_log_binned_density(s, bins_per_decade=5)
+    assert (df["density"] * (df["right"] - df["left"])).sum() == pytest.approx(1.0)
+    assert df["left"].iloc[:3].tolist() == [1, 2, 3] and df["right"].iloc[:3].tolist() == [2, 3, 4]
+    assert df["density"].iloc[0] == pytest.approx(0.5)
+    last = df.iloc[-1]
+    assert last["left"] <= 100 < last["right"]
+    assert last["density"] == pytest.approx(0.05 / (last["right"] - last["left"]))
+
+
+def test_density_2d_integrates_to_one():
+    rng = np.random.default_rng(1)
+    h, xe, ye = st.density_2d(rng.normal(3.5, 0.1, 1000), rng.uniform(0, 0.5, 1000), bins=(10, 5))
+    assert (h * np.outer(np.diff(xe), np.diff(ye))).sum() == pytest.approx(1.0)
+
+
+# ---------------------------------------------------------------------------------------------
+# C(tau)
+
+def test_correlation_peaks_at_the_known_lag():
+    rng = np.random.default_rng(5)
+    n, lag = 3000, 3
+    a = rng.normal(size=n)
+    b = np.r_[rng.normal(size=lag), a[:-lag]] + 0.5 * rng.normal(size=n)
+    quiet = np.ones(n, bool)
+    c = st.correlation_function(a, b, quiet, taus=range(-5, 8))
+    assert c.loc[c["C"].idxmax(), "tau"] == lag
+    assert c.set_index("tau").loc[lag, "C"] == pytest.approx(1 / np.sqrt(1.25), abs=0.02)
+    assert np.abs(c[c["tau"] != lag]["C"]).max() < 0.08
+
+
+def test_correlation_uses_quiet_frames_of_one_period_only():
+    rng = np.random.default_rng(6)
+    a = rng.normal(size=400)
+    b = a.copy()
+    quiet = np.ones(400, bool)
+    quiet[100:120] = False
+    b[100:120] = 1e6 * rng.normal(size=20)      # avalanching frames: garbage that must not enter
+    c = st.correlation_function(a, b, quiet, taus=[0, 2]).set_index("tau")
+    assert c.loc[0, "C"] == pytest.approx(1.0)
+    assert c.loc[0, "n_pairs"] == 380
+    assert c.loc[2, "n_pairs"] == (100 - 2) + (280 - 2)      # no pair straddles the avalanche
+
+
+def test_correlation_ensemble_pools_runs_without_crossing_them():
+    rng = np.random.default_rng(8)
+    rows = []
+    for run in (1, 2):
+        a = rng.normal(size=200)
+        b = np.r_[0.0, a[:-1]]
+        rows.append(pd.DataFrame({"run": run, "frame": np.arange(200), "largest_cluster": a,
+                                  "n_lost": b, "avalanching": False, "period": 0}))
+    c = st.correlation_function_ensemble(pd.concat(rows), taus=[1]).set_index("tau")
+    assert c.loc[1, "C"] == pytest.approx(1.0) and c.loc[1, "n_pairs"] == 2 * 199
+
+
+# ---------------------------------------------------------------------------------------------
+# failure enhancement
+
+def test_failure_enhancement_after_cluster_peaks():
+    n = 200
+    s = np.ones(n)
+    nf = np.full(n, 10.0)
+    peaks = np.arange(10, 190, 20)              # 9 peaks
+    s[peaks] = 10.0
+    nf[peaks + 1] = 14.0                        # failure one frame after each peak
+    quiet = np.ones(n, bool)
+    assert st.cluster_peaks(s, quiet).tolist() == peaks.tolist()
+    enh = st.failure_enhancement(s, nf, quiet, taus=[0, 1, 2]).set_index("tau")
+    base = nf.mean()
+    assert enh.loc[1, "enhancement"] == pytest.approx(14.0 / base - 1.0)
+    assert enh.loc[0, "enhancement"] == pytest.approx(10.0 / base - 1.0)
+    assert enh.loc[1, "n_peaks"] == 9
+    frames = pd.DataFrame({"run": 0, "frame": np.arange(n), "largest_cluster": s, "n_lost": nf,
+                           "avalanching": False, "period": 0})
+    ens = st.failure_enhancement_ensemble(frames, taus=[1]).set_index("tau")
+    assert ens.loc[1, "enhancement"] == pytest.approx(enh.loc[1, "enhancement"])
+
+
+# ---------------------------------------------------------------------------------------------
+# delta z versus size, windows
+
+def _clusters():
+    return pd.DataFrame({"size": [1, 1, 2, 2, 2, 5],
+                         "z": [2.0, 3.0, 2.5, 3.0, 3.5, 3.4],
+                         "n_m": [0.5, 0.5, 0.5, 0.75, 0.5, 0.6]}).assign(dz=lambda d: d.z - d.n_m)
+
+
+def test_dz_by_size():
+    out = st.dz_by_size(_clusters()).set_index("size_lo")
+    assert out.loc[1, "n"] == 2 and out.loc[1, "dz_mean"] == pytest.approx(2.0)
+    assert out.loc[1, "dz_min"] == pytest.approx(1.5)
+    assert out.loc[2, "dz_mean"] == pytest.approx((2.0 + 2.25 + 3.0) / 3)
+    binned = st.dz_by_size(_clusters(), size_edges=[1, 2, 10]).set_index("size_lo")
+    assert binned.loc[2, "n"] == 4 and binned.loc[2, "size_hi"] == 10
+
+
+def test_dz_distribution_respects_discreteness():
+    d = st.dz_distribution(_clusters(), 2)
+    assert d["center"].tolist() == pytest.approx([2.0, 2.25, 3.0])     # multiples of 1/(2*2)
+    assert (d["density"] * 0.25).sum() == pytest.approx(1.0)
+
+
+def test_cluster_size_windows():
+    rng = np.random.default_rng(2)
+    frames = pd.DataFrame({"run": 0, "frame": np.arange(40), "theta_to_onset": -(40 - np.arange(40)) / 20,
+                           "avalanching": False, "largest_cluster": np.arange(40)})
+    frames.loc[39, "avalanching"] = True
+    cl = pd.DataFrame({"run": 0, "frame": np.repeat(np.arange(40), 100),
+                       "size": st.sample_power_law_cutoff(2.0, 30.0, 4000, rng=rng)})
+    w = st.cluster_size_windows(cl, frames, width=1.0, lo=-2.0, hi=0.0, min_samples=50)
+    # theta - theta_m = -(40 - k)/20: [-2, -1) holds frames 0-19, [-1, 0) frames 20-38 (39 avalanches)
+    assert w["n_frames"].tolist() == [20, 19]
+    assert w["n_clusters"].tolist() == [2000, 1900]
+    assert w["mean_largest"].tolist() == pytest.approx([9.5, 29.0])
+    assert (w["fit_error"] == "").all()
+    assert (np.abs(w["delta"] - 2.0) < 3 * w["delta_err"]).all()
+    few = st.cluster_size_windows(cl, frames, width=1.0, lo=-2.0, hi=0.0, min_samples=5000)
+    assert few["fit_error"].str.contains("need at least 5000").all() and few["xi"].isna().all()
