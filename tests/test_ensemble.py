@@ -1,0 +1,303 @@
+"""The ensemble runner: LocalCluster and external scheduler, skip, retry, kill and resume, refusals.
+
+Runs use the smoke preset shrunk to 60 grains in a 10 d box (about two seconds each) so the
+whole file stays well under a minute on two cores.
+"""
+
+from __future__ import annotations
+
+import argparse
+import hashlib
+import json
+import os
+import shutil
+import signal
+import socket
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import h5py
+import numpy as np
+import pytest
+
+from tiltpile import config
+from tiltpile.config import ConfigError
+from tiltpile.ensemble import MANIFEST, add_parser, cmd_ensemble, main, run_ensemble, run_file
+from tiltpile.runner import simulate
+from tiltpile.store import open_run, part_path
+
+SMALL = ["scene.n=60", "scene.box_length=10.0", "protocol.theta_max_deg=2.0"]
+# a frame every step and a checkpoint every 5 frames: about 2 s of tilt to be killed in
+KILLABLE = ["scene.n=60", "scene.box_length=10.0", "protocol.theta_max_deg=2.0", "protocol.frame_every=2",
+            "protocol.checkpoint_every=5"]
+BIN = Path(sys.executable).parent
+
+
+def _cli(out, *extra, overrides=SMALL):
+    args = ["--preset", "smoke"]
+    for o in overrides:
+        args += ["--set", o]
+    return args + ["--out", str(out), *extra]
+
+
+def _snapshot(d: Path) -> dict:
+    """Every file under d (hidden ones too): (mtime_ns, sha256)."""
+    return {str(p.relative_to(d)): (p.stat().st_mtime_ns, hashlib.sha256(p.read_bytes()).hexdigest())
+            for p in sorted(d.rglob("*")) if p.is_file()}
+
+
+def _manifest(d: Path) -> dict:
+    return json.loads((d / MANIFEST).read_text())
+
+
+def _assert_same_run(a: Path, b: Path) -> None:
+    with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
+        for group in ("particles", "frames", "contacts"):
+            assert sorted(fa[group]) == sorted(fb[group])
+            for name in fa[group]:
+                np.testing.assert_array_equal(fa[group][name][()], fb[group][name][()],
+                                              err_msg=f"{a.name}: {group}/{name}")
+        assert fa.attrs["seed"] == fb.attrs["seed"] and fa.attrs["config_hash"] == fb.attrs["config_hash"]
+
+
+@pytest.fixture(scope="module")
+def small_config():
+    return config.load("smoke", overrides=SMALL)
+
+
+@pytest.fixture(scope="module")
+def local_ensemble(tmp_path_factory, small_config):
+    """Seeds 0 and 1 through a LocalCluster of two workers, done once for the module."""
+    out = tmp_path_factory.mktemp("ens") / "local"
+    t0 = time.perf_counter()
+    manifest = run_ensemble(small_config, [0, 1], out, workers=2, progress=False)
+    return out, manifest, time.perf_counter() - t0
+
+
+def test_local_cluster_two_runs_then_skip(local_ensemble, small_config):
+    out, manifest, _ = local_ensemble
+    assert manifest == _manifest(out)
+    assert manifest["config_hash"] == small_config.hash()
+    assert config.from_json(json.dumps(manifest["config"])) == small_config
+    assert manifest["seeds"] == [0, 1] and manifest["tiltpile_version"]
+    assert manifest["invocations"][-1]["engine"] == "LocalCluster(2 workers)"
+    workers = set()
+    for seed in (0, 1):
+        r = manifest["runs"][str(seed)]
+        assert r["status"] == "done" and r["error"] is None and r["attempts"] == 1
+        assert r["seconds"] > 0 and r["started"] <= r["finished"]
+        assert r["numba_cache_misses"] == 0, "a worker recompiled the kernels"
+        workers.add(r["worker"])
+        path = run_file(out, seed)
+        assert path.exists() and not part_path(path).exists()
+        with open_run(path) as run:
+            assert run.seed == seed and run.config_hash == small_config.hash()
+    assert len(workers) == 2, "the two runs did not go to the two workers"
+    assert sorted(p.name for p in out.glob("run_*")) == ["run_0000.h5", "run_0001.h5"]
+
+    before = _snapshot(out)
+    t0 = time.perf_counter()
+    again = run_ensemble(small_config, [0, 1], out, workers=2, progress=False)
+    assert time.perf_counter() - t0 < 2.0, "finished runs were not skipped"
+    assert again["runs"] == manifest["runs"]
+    assert _snapshot(out) == before
+
+
+@pytest.fixture
+def dask_cluster(tmp_path):
+    """`dask scheduler` and one `dask worker` on loopback, started and stopped here."""
+    with socket.socket() as s:
+        s.bind(("127.0.0.1", 0))
+        port = s.getsockname()[1]
+    address = f"tcp://127.0.0.1:{port}"
+    env = dict(os.environ, NUMBA_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    procs = []
+    try:
+        for cmd in ([str(BIN / "dask"), "scheduler", "--host", "127.0.0.1", "--port", str(port),
+                     "--no-dashboard"],
+                    [str(BIN / "dask"), "worker", address, "--nthreads", "1", "--nworkers", "1",
+                     "--no-dashboard", "--host", "127.0.0.1", "--local-directory", str(tmp_path / "dask")]):
+            procs.append(subprocess.Popen(cmd, env=env, cwd=tmp_path, start_new_session=True,
+                                          stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL))
+        from distributed import Client
+
+        with Client(address, timeout="30s") as c:
+            c.wait_for_workers(1, timeout=60)
+        yield address
+    finally:
+        for p in reversed(procs):
+            _stop_group(p, signal.SIGTERM)
+
+
+def _stop_group(p: subprocess.Popen, sig) -> None:
+    try:
+        os.killpg(p.pid, sig)
+        p.wait(timeout=15)
+    except ProcessLookupError:
+        pass
+    except subprocess.TimeoutExpired:
+        os.killpg(p.pid, signal.SIGKILL)
+        p.wait(timeout=15)
+
+
+def test_external_scheduler_records_a_failure_and_retries_it(dask_cluster, tmp_path, small_config, capsys):
+    out = tmp_path / "ext"
+    out.mkdir()
+    blocker = part_path(run_file(out, 4))
+    blocker.mkdir()  # seed 4 cannot write its run file: it fails, seed 3 goes on
+    args = _cli(out, "--runs", "2", "--first-seed", "3", "--scheduler", dask_cluster, "--quiet")
+    assert main(args) == 1
+    m = _manifest(out)
+    assert m["invocations"][-1]["engine"] == dask_cluster
+    assert m["runs"]["3"]["status"] == "done" and run_file(out, 3).exists()
+    assert m["runs"]["3"]["numba_cache_misses"] == 0
+    assert m["runs"]["4"]["status"] == "failed" and m["runs"]["4"]["error"]
+    assert not run_file(out, 4).exists()
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert summary["failed"] == [4] and summary["done"] == 1
+
+    blocker.rmdir()
+    done3 = _snapshot(out)["run_0003.h5"]
+    assert main(args) == 0
+    m = _manifest(out)
+    assert m["runs"]["4"]["status"] == "done" and m["runs"]["4"]["error"] is None
+    assert m["runs"]["4"]["attempts"] == 2 and m["runs"]["3"]["attempts"] == 1
+    assert _snapshot(out)["run_0003.h5"] == done3, "a finished run was redone"
+    with open_run(run_file(out, 4)) as run:
+        assert run.seed == 4 and run.config_hash == small_config.hash()
+
+
+def _checkpointed_part(out: Path, min_frames: int) -> bool:
+    """True when some .part file has just written a checkpoint past ``min_frames`` frames.
+
+    "Just": no frame appended since, so the file on disk is the one flushed with the checkpoint
+    (read without locking while the writer runs; a file caught mid-write is looked at again).
+    """
+    for part in out.glob("run_*.h5.part"):
+        try:
+            with h5py.File(part, "r", locking=False) as f:
+                if "checkpoint" in f:
+                    k = int(f["checkpoint"].attrs["n_frames"])
+                    if k >= min_frames and f["frames/step"].shape[0] == k:
+                        return True
+        except Exception:
+            pass
+    return False
+
+
+def _resumable(out: Path) -> dict[str, int]:
+    """{seed: frames of its checkpoint} for the .part files that can be reopened after the kill."""
+    found = {}
+    for part in sorted(out.glob("run_*.h5.part")):
+        try:
+            with h5py.File(part, "r") as f:
+                if "checkpoint" in f:
+                    found[str(int(f.attrs["seed"]))] = int(f["checkpoint"].attrs["n_frames"])
+        except OSError:  # killed before its first flush, or mid-write: the run starts afresh
+            pass
+    return found
+
+
+def test_sigkill_then_rerun_is_bit_identical(tmp_path):
+    cfg = config.load("smoke", overrides=KILLABLE)
+    out = tmp_path / "killed"
+    cmd = [sys.executable, "-m", "tiltpile.ensemble", *_cli(out, "--runs", "2", "--workers", "2", "--quiet",
+                                                            overrides=KILLABLE)]
+    proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    try:
+        deadline = time.monotonic() + 90
+        while not _checkpointed_part(out, 41):
+            assert proc.poll() is None, f"ensemble ended before it could be killed: {proc.stderr.read()!r}"
+            assert time.monotonic() < deadline, "no checkpoint appeared"
+            time.sleep(0.02)
+    finally:
+        os.killpg(proc.pid, signal.SIGKILL)
+        proc.wait(timeout=30)
+        proc.stderr.close()
+    deadline = time.monotonic() + 30
+    while True:  # the whole group (workers included) is gone before the rerun
+        try:
+            os.killpg(proc.pid, 0)
+        except ProcessLookupError:
+            break
+        assert time.monotonic() < deadline, "workers outlived the killed ensemble"
+        time.sleep(0.05)
+    resumable = _resumable(out)
+    assert resumable, "no interrupted run file with a checkpoint survived the kill"
+    assert _manifest(out)["runs"]["0"]["status"] in ("pending", "running", "done")
+
+    m = run_ensemble(cfg, [0, 1], out, workers=2, progress=False)
+    assert [m["runs"][s]["status"] for s in ("0", "1")] == ["done", "done"]
+    assert not list(out.glob("*.part"))
+    for seed, k in resumable.items():
+        assert m["runs"][seed]["resumed_from_frame"] == k, f"seed {seed} did not resume from its checkpoint"
+
+    ref = tmp_path / "reference"
+    for seed in (0, 1):
+        simulate(cfg, seed, run_file(ref, seed), progress=False, resume=False)
+        _assert_same_run(run_file(out, seed), run_file(ref, seed))
+
+
+def test_config_mismatch_is_refused_and_touches_nothing(local_ensemble, tmp_path, capsys):
+    src, _, _ = local_ensemble
+    out = tmp_path / "copy"
+    shutil.copytree(src, out)
+    before = _snapshot(out)
+    other = config.load("smoke", overrides=SMALL + ["solver.tol=1e-6"])
+    with pytest.raises(ConfigError, match="another configuration"):
+        run_ensemble(other, [0, 1], out, workers=2, progress=False)
+    assert main(_cli(out, "--runs", "3", "--workers", "2", overrides=SMALL + ["solver.tol=1e-6"])) == 2
+    assert "another configuration" in capsys.readouterr().err
+    assert _snapshot(out) == before
+    # without its manifest, the run files still identify the configuration
+    (out / MANIFEST).unlink()
+    before = _snapshot(out)
+    with pytest.raises(ConfigError, match="run of another configuration"):
+        run_ensemble(other, [5], out, progress=False)
+    assert _snapshot(out) == before
+
+
+def test_bad_input_fails_clearly_and_writes_nothing(tmp_path, small_config, capsys):
+    out = tmp_path / "never"
+    assert main(_cli(out, "--runs", "0")) == 2
+    assert "--runs must be at least 1" in capsys.readouterr().err
+    assert main(_cli(out, "--runs", "2", "--workers", "0")) == 2
+    assert main(_cli(out, "--runs", "2", "--set", "scene.n=-3")) == 2
+    assert "scene.n" in capsys.readouterr().err
+    with pytest.raises(SystemExit) as e:
+        main(_cli(out, "--runs", "2", "--first-seed", "-1"))
+    assert e.value.code == 2
+    assert "non-negative" in capsys.readouterr().err
+    for seeds, match in (([], "no runs"), ([-1], "negative"), ([1.5], "not an integer"), ([2, 2], "repeat")):
+        with pytest.raises(ConfigError, match=match):
+            run_ensemble(small_config, seeds, out, progress=False)
+    with pytest.raises(ConfigError, match="workers"):
+        run_ensemble(small_config, [0], out, workers=0, progress=False)
+    (tmp_path / "afile").write_text("x")
+    with pytest.raises(ConfigError, match="not a directory"):
+        run_ensemble(small_config, [0], tmp_path / "afile", progress=False)
+    assert not out.exists()
+
+
+def test_add_parser_registers_the_command():
+    p = argparse.ArgumentParser(prog="tiltpile")
+    sub = p.add_subparsers(dest="command", required=True)
+    add_parser(sub)
+    args = p.parse_args(["ensemble", "--preset", "paper", "--runs", "50", "--out", "data/paper",
+                         "--scheduler", "tcp://10.0.0.1:8786"])
+    assert args.func is cmd_ensemble
+    assert (args.runs, args.first_seed, args.scheduler, args.workers) == (50, 0, "tcp://10.0.0.1:8786", None)
+    assert args.out == Path("data/paper") and args.preset == "paper" and args.overrides == []
+
+
+def test_progress_sender_throttles_angle_events():
+    from tiltpile.ensemble import _progress_sender
+    from tiltpile.sim.protocol import Progress
+
+    sent = []
+    send = _progress_sender(lambda topic, msg: sent.append((topic, msg)), "t", 7, every=3600.0)
+    send(Progress("tilt", 10, 1.25, 3.0))
+    send(Progress("tilt", 20, 1.5, 3.0))  # within the interval: dropped
+    assert sent == [("t", {"seed": 7, "event": "progress", "phase": "tilt", "theta": 1.25})]
