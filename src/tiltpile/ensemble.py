@@ -77,7 +77,7 @@ from tiltpile.config import Config, ConfigError
 MANIFEST = "ensemble.json"
 LOCK = ".ensemble.lock"
 FORMAT = "tiltpile-ensemble/1"
-STATUSES = ("pending", "running", "done", "failed")
+STATUSES = ("pending", "running", "done", "failed")  # of a run in the manifest
 WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
               "OPENBLAS_NUM_THREADS": "1"}
 POLL = 0.25  # [s] between looks at finished futures and start/progress events
@@ -125,7 +125,8 @@ def read_manifest(out_dir: str | Path) -> dict | None:
     try:
         m = json.loads(path.read_text())
     except (OSError, ValueError) as e:
-        raise ConfigError(f"{path}: not a readable ensemble manifest ({e}); move it away to start afresh") from None
+        raise ConfigError(f"{path}: not a readable ensemble manifest ({e}); "
+                          "move it away to start afresh") from None
     if not isinstance(m, dict) or m.get("format") != FORMAT or "config_hash" not in m:
         raise ConfigError(f"{path}: not a tiltpile ensemble manifest; move it away to start afresh")
     return m
@@ -354,7 +355,8 @@ def run_ensemble(config: Config, seeds, out_dir: str | Path, *, scheduler=None, 
     out_dir = Path(out_dir)
     old = _check_dir(config, out_dir)
     todo = [s for s in seeds if not run_file(out_dir, s).exists()]
-    if not todo and old is not None and all(old["runs"].get(str(s), {}).get("status") == "done" for s in seeds):
+    recorded = old is not None and all(old["runs"].get(str(s), {}).get("status") == "done" for s in seeds)
+    if not todo and recorded:
         _report(old, seeds, progress, out_dir)
         return old  # everything done and recorded: touch nothing
 
@@ -534,7 +536,7 @@ def cmd_ensemble(args) -> int:
     if args.workers is not None and args.workers < 1:
         raise ConfigError(f"--workers must be at least 1, got {args.workers}")
     if args.workers is not None and args.scheduler is not None:
-        raise ConfigError("--workers sizes the LocalCluster; with --scheduler the cluster has its own workers")
+        raise ConfigError("--workers sizes the LocalCluster; with --scheduler the cluster brings its own")
     cfg = _load_config(args)
     seeds = range(args.first_seed, args.first_seed + args.runs)
     manifest = run_ensemble(cfg, seeds, args.out, scheduler=args.scheduler, workers=args.workers,
