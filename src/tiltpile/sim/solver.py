@@ -74,8 +74,9 @@ def nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm):
     """Sweep until the relative impulse change is <= tol or ``max_iter`` sweeps.
 
     ``perm`` (C,) int64 is scratch for the random order. Returns (sweeps, residual).
-    The local solve is written out in the loop body (no helper call): numba then keeps the
-    body in registers, 3-4x faster than an inlined helper returning a tuple.
+    The local solve is written out in the loop body: an inlined helper returning a tuple of
+    sums made the sweep 2-3x slower (43 vs ~20 ns per update); ``_push`` returns nothing and
+    costs nothing measurable.
     """
     nc = ci.shape[0]
     if nc == 0:
@@ -127,16 +128,7 @@ def nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm):
             status[a] = st
             dpn = pn_new - pn
             dpt = pt_new - pt
-            px = dpn * nx - dpt * ny
-            py = dpn * ny + dpt * nx
-            imi = vel[i, 3]
-            imj = vel[j, 3]
-            vel[i, 0] += imi * px
-            vel[i, 1] += imi * py
-            vel[i, 2] -= 2.0 * imi * dpt
-            vel[j, 0] -= imj * px
-            vel[j, 1] -= imj * py
-            vel[j, 2] -= 2.0 * imj * dpt
+            _push(vel, i, j, nx, ny, dpn, dpt)
             c[a, 6] = pn_new
             c[a, 7] = pt_new
             num += dpn * dpn + dpt * dpt
