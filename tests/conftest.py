@@ -16,13 +16,4 @@ def smoke_config():
 @pytest.fixture(scope="session")
 def settled_pile(smoke_config):
     """A deposited smoke pile (System) at theta = 0, computed once per session."""
-    sysm = None
-    gen = protocol.run(smoke_config, seed=3)
-    for ev in gen:
-        if isinstance(ev, protocol.Checkpoint) and ev.state["scalars"]["phase"] == "tilt":
-            sysm = protocol.make_system(smoke_config, 3)
-            sysm.restore(ev.state)
-            break
-    gen.close()
-    assert sysm is not None
-    return sysm
+    return protocol.deposited(smoke_config, seed=3)

@@ -11,6 +11,7 @@ import numpy as np
 import pytest
 
 from tiltpile import config
+from tiltpile.analysis.contacts import lost_contacts
 from tiltpile.runner import simulate
 from tiltpile.sim import protocol
 from tiltpile.store import open_run, part_path
@@ -54,9 +55,8 @@ def _lost_fraction(run, k):
     """Fraction of the active contacts of frame k that are not active at k + 1."""
     pa, fa, _ = run.contacts(k)
     pb, fb, _ = run.contacts(k + 1)
-    a = {tuple(p) for p, f in zip(pa, fa) if f[0] > 0}
-    b = {tuple(p) for p, f in zip(pb, fb) if f[0] > 0}
-    return len(a - b) / max(1, len(a))
+    lost = lost_contacts(pa, fa[:, 0] > 0, pb, fb[:, 0] > 0, run.radius.size)
+    return lost.sum() / max(1, (fa[:, 0] > 0).sum())
 
 
 def _lost_series(path):

@@ -37,8 +37,8 @@ def settled_pile(cfg: cfgmod.Config, seed: int, progress: bool = True):
     """A deposited pile for ``cfg``: from the cache, or deposited now and cached."""
     CACHE.mkdir(parents=True, exist_ok=True)
     path = CACHE / f"pile_n{cfg.scene.n}_s{seed}_{cfg.hash()[:12]}.npz"
-    sysm = protocol.make_system(cfg, seed)
     if path.exists():
+        sysm = protocol.make_system(cfg, seed)
         with np.load(path) as z:
             state = {k: z[k] for k in z.files if k != "scalars"}
             state["scalars"] = json.loads(str(z["scalars"]))
@@ -46,22 +46,14 @@ def settled_pile(cfg: cfgmod.Config, seed: int, progress: bool = True):
         return sysm
     from tqdm.auto import tqdm
 
-    bar = tqdm(desc=f"depositing {cfg.scene.n} grains (cached for next time)", unit="step",
-               disable=not progress)
-    gen = protocol.run(cfg, seed)
-    for ev in gen:
-        if isinstance(ev, protocol.Progress):
-            bar.update(ev.step - bar.n)
-        if isinstance(ev, protocol.Checkpoint) and ev.state["scalars"]["phase"] == "tilt":
-            state = ev.state
-            break
-    gen.close()
-    bar.close()
+    with tqdm(desc=f"depositing {cfg.scene.n} grains (cached for next time)", unit="step",
+              disable=not progress) as bar:
+        sysm = protocol.deposited(cfg, seed, on_progress=lambda ev: bar.update(ev.step - bar.n))
+    state = sysm.state()
     tmp = path.with_suffix(".tmp.npz")
     np.savez(tmp, **{k: v for k, v in state.items() if k != "scalars"},
              scalars=json.dumps(state["scalars"]))
     tmp.replace(path)
-    sysm.restore(state)
     return sysm
 
 
@@ -70,8 +62,7 @@ def bench(n: int = 4000, steps: int = 200, preset: str = "paper", config_file=No
     if steps < 1:
         raise cfgmod.ConfigError(f"--steps must be >= 1, got {steps}")
     cfg = bench_config(n, preset, config_file, overrides)
-    sysm = settled_pile(cfg, seed, progress)
-    sysm.params["tol"] = cfg.solver.tol
+    sysm = settled_pile(cfg, seed, progress)  # solves to cfg.solver.tol (make_system)
     dth = cfg.protocol.tilt_per_step_deg
     sysm.advance(20, 0.0, dth)
     t0 = time.perf_counter()

@@ -30,7 +30,7 @@ def simulate(config, seed: int, out: str | Path, *, progress: bool | str = True,
                            jit=flags())
         state = None
     start_frame = writer.n_frames
-    bar = _bar(config, seed, progress, position, start_frame)
+    bar = _Bar(config.protocol.theta_max_deg, seed, progress, position)
     warnings = {"cap_hits": 0, "missed": 0, "max_overlap": 0.0}
     try:
         for ev in protocol.run(config, seed, state):
@@ -43,27 +43,26 @@ def simulate(config, seed: int, out: str | Path, *, progress: bool | str = True,
                 writer.checkpoint(ev.state)
             elif isinstance(ev, protocol.Deposited):
                 writer.write_deposition(ev)
-            elif isinstance(ev, protocol.Progress) and bar is not None:
+            elif isinstance(ev, protocol.Progress):
                 bar.update(ev)
         path = writer.finish()
     except BaseException:
         writer.close()
         raise
     finally:
-        if bar is not None:
-            bar.close()
+        bar.close()
     return dict(path=str(path), seed=seed, seconds=time.perf_counter() - t0,
                 resumed_from_frame=start_frame if resumed is not None else None, **warnings)
 
 
-class _bar:
-    """tqdm over tilt angle (deposition shown as its step count) with mean NLGS sweeps."""
+class _Bar:
+    """tqdm over tilt angle (deposition shown as its step count) with mean NLGS sweeps;
+    ``mode`` False disables it, "log" refreshes at most every 30 s (for log files)."""
 
-    def __init__(self, config, seed, mode, position, start_frame):
+    def __init__(self, theta_max_deg, seed, mode, position):
         from tqdm.auto import tqdm
 
-        self.proto = config.protocol
-        self.t = tqdm(total=round(self.proto.theta_max_deg, 3), unit="deg", position=position,
+        self.t = tqdm(total=round(theta_max_deg, 3), unit="deg", position=position,
                       desc=f"seed {seed} deposit", disable=not mode, leave=position == 0,
                       mininterval=1.0 if mode != "log" else 30.0,
                       bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.2f}/{total:.0f} deg "

@@ -65,13 +65,9 @@ class RunWriter:
     """Append frames and checkpoints to ``NAME.part``; ``finish`` renames it to ``NAME``."""
 
     def __init__(self, path: str | Path, *, config_json: str, config_hash: str, seed: int,
-                 radius: np.ndarray, fixed: np.ndarray, box_length: float, jit: dict,
-                 _file: h5py.File | None = None):
+                 radius: np.ndarray, fixed: np.ndarray, box_length: float, jit: dict):
         self.path = Path(path)
         self.part = part_path(self.path)
-        if _file is not None:
-            self.f = _file
-            return
         self.path.parent.mkdir(parents=True, exist_ok=True)
         f = self.f = h5py.File(self.part, "w")
         f.attrs.update(tiltpile_version=tiltpile.__version__, seed=int(seed), config=config_json,
@@ -182,8 +178,9 @@ class RunWriter:
         except (OSError, RuntimeError, KeyError):
             f.close()
             return None
-        return cls(path, config_json="", config_hash=config_hash, seed=0, radius=np.empty(0),
-                   fixed=np.empty(0), box_length=0.0, jit={}, _file=f), state
+        writer = cls.__new__(cls)  # reopened, not created: skip __init__'s layout
+        writer.path, writer.part, writer.f = Path(path), part, f
+        return writer, state
 
 
 class Run:

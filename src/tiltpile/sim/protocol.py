@@ -187,7 +187,7 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Fr
         _check_sane(sysm, config.scene.box_length)
         if k == proto.frame_every:
             yield _frame(sysm, proto, dt, rec.iterations[-1], rec.residual[-1],
-                         (rec.iterations, rec.overlap.max(), rec.missed.sum()))
+                         (rec.iterations, rec.overlap[-1], rec.missed.sum()))
             sc["frame"] += 1
         yield Progress("tilt", sc["step"], sc["tilt_step"] * proto.tilt_per_step_deg,
                        float(rec.iterations.mean()))
@@ -195,3 +195,24 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Fr
             sc["phase"] = "done"
         if sc["phase"] == "done" or (sc["frame"] - 1) % proto.checkpoint_every == 0:
             yield Checkpoint(sysm.state())
+
+
+def deposited(config, seed: int, on_progress=None) -> System:
+    """The pile of ``config`` and ``seed`` as it is at frame 0: deposited and settled at theta = 0.
+
+    Runs ``run`` up to its first tilt-phase checkpoint (frame 0) and stops; ``on_progress`` gets
+    each ``Progress`` event on the way.
+    """
+    gen = run(config, seed)
+    try:
+        for ev in gen:
+            if isinstance(ev, Progress) and on_progress is not None:
+                on_progress(ev)
+            if isinstance(ev, Checkpoint) and ev.state["scalars"]["phase"] == "tilt":
+                sysm = make_system(config, seed)
+                sysm.restore(ev.state)
+                return sysm
+    finally:
+        gen.close()
+    raise SimulationError("the protocol ended before deposition did")  # pragma: no cover
+
