@@ -169,7 +169,7 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Fr
             rec = sysm.advance(proto.rest_steps, 0.0, 0.0)
             sc["step"] += proto.rest_steps
             yield _frame(sysm, proto, dt, rec.iterations[-1], rec.residual[-1],
-                         (rec.iterations, rec.overlap[-1], rec.missed.sum()))
+                         (rec.iterations, rec.overlap.max(), rec.missed.sum()))
             sc["frame"] = 1
             yield Checkpoint(sysm.state())
         elif (sc["deposition_steps"] // DEPOSITION_CHUNK) % 10 == 0:
@@ -187,7 +187,7 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Fr
         _check_sane(sysm, config.scene.box_length)
         if k == proto.frame_every:
             yield _frame(sysm, proto, dt, rec.iterations[-1], rec.residual[-1],
-                         (rec.iterations, rec.overlap[-1], rec.missed.sum()))
+                         (rec.iterations, rec.overlap.max(), rec.missed.sum()))
             sc["frame"] += 1
         yield Progress("tilt", sc["step"], sc["tilt_step"] * proto.tilt_per_step_deg,
                        float(rec.iterations.mean()))
