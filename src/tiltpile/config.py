@@ -1,11 +1,12 @@
 """Run configuration: TOML presets validated into frozen dataclasses.
 
-This module is the only one that parses configuration text. A configuration has three
+This module is the only one that parses configuration text. A configuration has four
 sections, each a frozen dataclass whose fields carry their type and allowed range:
 
 ``scene``     the grains and the box (what is simulated),
 ``solver``    the Contact Dynamics integrator (how accurately),
-``protocol``  deposition and quasi-static tilt (what is done to the pile).
+``protocol``  deposition and quasi-static tilt (what is done to the pile),
+``health``    the limits at which a run is flagged, warned about, or stopped (``HealthConfig``).
 
 Presets ``smoke``, ``default`` and ``paper`` live in ``tiltpile/presets/*.toml``. A preset may be
 overridden by a TOML file and by ``key=value`` strings with dotted keys (``solver.dt=0.005``).
@@ -85,7 +86,58 @@ class ProtocolConfig:
     checkpoint_every: int = _f(20, lo=1, doc="frames between checkpoints")
 
 
-SECTIONS = {"scene": SceneConfig, "solver": SolverConfig, "protocol": ProtocolConfig}
+@dataclass(frozen=True)
+class HealthConfig:
+    """Limits of the run's health checks (README "Health checks and limits").
+
+    Every step records its largest overlap, NLGS sweeps, energy gain (kinetic energy gained
+    beyond the work of gravity, which rigid perfectly inelastic frictional contacts can never
+    produce: ``sim/step.py``) and whether a grain outran the alert distance; frames store the
+    worst value or the count since the previous frame. Past a ``*_warn`` limit a frame is flagged
+    and ``runner.simulate`` warns once at the end; past a ``*_stop`` limit the protocol raises
+    ``SimulationError``. Warn limits must not exceed stop limits.
+
+    Defaults, against what the presets measure. Smoke (seeds 1-4): largest overlap 3-6e-6 d in
+    the tilt, 1.4e-5 d in deposition; energy gain <= 7e-8 m g d per grain per step through the
+    whole tilt, avalanche included; 26-61% of the tilt steps hit max_iter (cumulative fraction at
+    most 68%), the final residual at the cap 1.5-47 times tol. Default preset (seed 1): at
+    max_iter 1000 to 22 deg 34% of the steps at the cap, overlaps <= 8e-6 d, energy gain <= 1.1e-7
+    (in the avalanche); at max_iter 2000 to 30 deg 47% and 5e-5 d; 0.3-1.3e-6 in the settling
+    steps of frame 0, which re-solve the deposited pile from deposition_tol and are not judged. For comparison a 40-60 grain pile gains 2-4e-6 per grain per step at tol 1e-3
+    and 3e-5 to 1.3e-4 at tol 1e-2 or max_iter 10; held 1000 steps at 10 deg the 60-grain pile
+    creeps 1.5e-7 d converged, 3e-3 d at tol 1e-3, 1e-2 to 9e-2 d at max_iter 50 or 10 or tol 1e-2.
+    The cap-hit fraction is cumulative over the steps at solver.tol, so it stops only a run that is
+    capped nearly everywhere; the energy limits are what catch a solver that is merely loose. The
+    energy stop also trips on overlaps pushed out in one step in small piles (in a 60-grain pile
+    an overlap of ~2e-3 d gains 1e-4 per grain), which is what a too large dt produces.
+
+    Missed-contact steps (a grain moved more than alert / 2 since the list was built) have no
+    limit of their own: a contact actually missed shows up as an overlap one step later, which
+    the overlap (and energy) limits judge; tilt-phase missed steps are always reported in the
+    warning (deposition has some even at the presets' dt: 12 in a smoke deposition, 228 in the
+    default one).
+    """
+
+    overlap_warn: float = _f(1e-3, lo=0.0, lo_open=True, hi=1.0,
+                             doc="flag a frame whose largest overlap exceeds this [d]")
+    overlap_stop: float = _f(0.05, lo=0.0, lo_open=True, hi=1.0,
+                             doc="stop when any step (deposition included) overlaps more [d]")
+    energy_warn: float = _f(1e-6, lo=0.0, lo_open=True,
+                            doc="flag a tilt frame with a step gaining more kinetic energy than "
+                                "gravity did work, per mobile grain [m g d]")
+    energy_stop: float = _f(1e-4, lo=0.0, lo_open=True,
+                            doc="stop when a tilt step gains more than this per mobile grain "
+                                "[m g d]")
+    cap_hit_warn_fraction: float = _f(0.9, lo=0.0, hi=1.0,
+                                      doc="warn when more than this fraction of the steps at "
+                                          "solver.tol (settling and tilt) hit solver.max_iter")
+    cap_hit_stop_fraction: float = _f(0.98, lo=0.0, hi=1.0,
+                                      doc="stop when more than this fraction has, judged from "
+                                          "CAP_HIT_MIN_STEPS (500) steps on; 1 never stops")
+
+
+SECTIONS = {"scene": SceneConfig, "solver": SolverConfig, "protocol": ProtocolConfig,
+            "health": HealthConfig}
 
 
 @dataclass(frozen=True)
@@ -93,6 +145,7 @@ class Config:
     scene: SceneConfig = field(default_factory=SceneConfig)
     solver: SolverConfig = field(default_factory=SolverConfig)
     protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
+    health: HealthConfig = field(default_factory=HealthConfig)
 
     def to_dict(self) -> dict[str, dict[str, Any]]:
         return dataclasses.asdict(self)
@@ -169,6 +222,12 @@ def from_dict(data: dict[str, Any], base: Config | None = None) -> Config:
 def _check_consistency(cfg: Config) -> None:
     if cfg.scene.box_length < 2 * (1 + cfg.scene.polydispersity) * cfg.scene.fill_spacing:
         raise ConfigError("scene.box_length is too short to hold a row of grains")
+    h = cfg.health
+    for warn, stop in (("overlap_warn", "overlap_stop"), ("energy_warn", "energy_stop"),
+                       ("cap_hit_warn_fraction", "cap_hit_stop_fraction")):
+        if getattr(h, warn) > getattr(h, stop):
+            raise ConfigError(f"health.{warn} = {getattr(h, warn)!r} exceeds health.{stop} = "
+                              f"{getattr(h, stop)!r}: a warn limit must not exceed its stop limit")
 
 
 def parse_override(text: str) -> dict[str, Any]:

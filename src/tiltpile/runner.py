@@ -3,13 +3,22 @@
 ``simulate(config, seed, out)`` writes ``out`` (via ``out.part``), resuming an interrupted
 ``.part`` of the same configuration from its last checkpoint, and returns a summary dict. Both the
 ``simulate`` command and the ensemble call it.
+
+Health. Past a stop limit of ``config.health`` the protocol raises ``SimulationError``; the
+``.part`` file stays (rerunning the same configuration resumes it and stops at the same place; a
+changed configuration has another hash and starts afresh). A complete run is judged against the
+warn limits over all its frames (``tiltpile.health.summarize``, resumed runs included): the summary
+goes to the run file's ``/health`` attrs and to the returned dict (key ``health``; the ensemble
+manifest records it per run), and any warnings are issued as one ``RuntimeWarning``.
 """
 
 from __future__ import annotations
 
 import time
+import warnings
 from pathlib import Path
 
+from tiltpile import health
 from tiltpile.sim import protocol
 from tiltpile.sim.jit import flags
 from tiltpile.store import RunWriter
@@ -31,28 +40,38 @@ def simulate(config, seed: int, out: str | Path, *, progress: bool | str = True,
         state = None
     start_frame = writer.n_frames
     bar = _Bar(config.protocol.theta_max_deg, seed, progress, position)
-    warnings = {"cap_hits": 0, "missed": 0, "max_overlap": 0.0}
     try:
         for ev in protocol.run(config, seed, state):
             if isinstance(ev, protocol.Frame):
                 writer.append(ev)
-                warnings["cap_hits"] += ev.cap_hits
-                warnings["missed"] += ev.missed
-                warnings["max_overlap"] = max(warnings["max_overlap"], ev.max_overlap)
             elif isinstance(ev, protocol.Checkpoint):
                 writer.checkpoint(ev.state)
             elif isinstance(ev, protocol.Deposited):
                 writer.write_deposition(ev)
             elif isinstance(ev, protocol.Progress):
                 bar.update(ev)
+        report = health.summarize(writer.frame_columns(health.COLUMNS), writer.deposition_attrs(),
+                                  config, writer.n_mobile)
+        writer.write_health(report)
         path = writer.finish()
+    except protocol.SimulationError as e:
+        writer.close()
+        raise protocol.SimulationError(
+            f"{e} The partial file {writer.part} is kept: rerunning the same configuration "
+            "resumes it from its last checkpoint (and stops here again); a changed configuration "
+            "has a new hash and starts afresh.") from e
     except BaseException:
         writer.close()
         raise
     finally:
         bar.close()
+    message = health.warning_message(report, f"{path} (seed {seed})")
+    if message is not None:
+        warnings.warn(message, RuntimeWarning, stacklevel=2)
     return dict(path=str(path), seed=seed, seconds=time.perf_counter() - t0,
-                resumed_from_frame=start_frame if resumed is not None else None, **warnings)
+                resumed_from_frame=start_frame if resumed is not None else None,
+                cap_hits=report["cap_hits"], missed=report["missed_steps"],
+                max_overlap=report["max_overlap"], health=report)
 
 
 class _Bar:

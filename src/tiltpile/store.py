@@ -20,18 +20,27 @@ Layout (F frames, N grains including the fixed bottom row, C contacts over all f
     /frames/max_iterations(F,)      int64    most sweeps in a step since the previous frame
     /frames/cap_hits      (F,)      int64    steps since the previous frame that hit max_iter
     /frames/missed        (F,)      int64    steps where a grain outran the alert distance
+    /frames/energy_gain   (F,)      float64  largest per-step gain of kinetic energy beyond the work
+                                             of gravity since the previous frame [m g d]; <= 0 up
+                                             to solver error (contacts only dissipate)
     /contacts/offset      (F+1,)    int64    contacts of frame k are rows offset[k]:offset[k+1]
     /contacts/pair        (C, 2)    int32    grain ids (i < j); walls: -1 floor, -2 left (x = 0),
                                              -3 right (x = L)
     /contacts/force       (C, 2)    float64  normal, tangential force = impulse / dt [m g]
     /contacts/status      (C,)      int8     0 open (touching, no force), 1 sticking,
                                              2 sliding (fully mobilized, |f_t| = mu f_n)
-    /deposition           attrs: steps, time, ke_per_grain, height
+    /deposition           attrs: steps, time, ke_per_grain, height, max_overlap, missed
+    /health               attrs (complete runs): the health summary of ``runner.simulate`` --
+                          counts of flagged frames and steps, worst values, and ``warnings``
+                          (JSON list of the warning texts, empty when healthy)
     /checkpoint           (only while incomplete) the simulator's full state and the frame count
 
 The file is written as ``NAME.part`` and renamed to ``NAME`` when complete, so a file with the
 final name is always whole. An interrupted ``.part`` file resumes from its checkpoint
 (``RunWriter.resume``): frames past the checkpoint are dropped and recomputed.
+
+Files written before a column existed (``frames/energy_gain``, ``/health``) still open: the
+reader fills a missing per-frame column with NaN and ``Run.health`` is then empty.
 """
 
 from __future__ import annotations
@@ -48,7 +57,7 @@ import tiltpile
 FRAME_SCALARS = {"step": np.int64, "time": np.float64, "theta_deg": np.float64,
                  "iterations": np.int64, "residual": np.float64, "ke": np.float64,
                  "max_overlap": np.float64, "max_iterations": np.int64, "cap_hits": np.int64,
-                 "missed": np.int64}
+                 "missed": np.int64, "energy_gain": np.float64}
 CONTACT_SETS = {"pair": (np.int32, (2,)), "force": (np.float64, (2,)), "status": (np.int8, ())}
 
 
@@ -92,10 +101,29 @@ class RunWriter:
     def n_frames(self) -> int:
         return self.f["frames/step"].shape[0]
 
+    @property
+    def n_mobile(self) -> int:
+        return int((~self.f["particles/fixed"][()]).sum())
+
     def write_deposition(self, summary) -> None:
         g = self.f.require_group("deposition")
         g.attrs.update(steps=int(summary.steps), time=float(summary.time),
-                       ke_per_grain=float(summary.ke_per_grain), height=float(summary.height))
+                       ke_per_grain=float(summary.ke_per_grain), height=float(summary.height),
+                       max_overlap=float(summary.max_overlap), missed=int(summary.missed))
+
+    def frame_columns(self, names) -> dict:
+        """Per-frame scalar columns written so far (e.g. for the health summary at the end)."""
+        return {name: self.f["frames"][name][()] for name in names}
+
+    def deposition_attrs(self) -> dict:
+        dep = self.f.get("deposition")
+        return dict(dep.attrs) if dep is not None else {}
+
+    def write_health(self, summary: dict) -> None:
+        """Store the health summary as attrs of ``/health`` (``warnings`` as JSON text)."""
+        g = self.f.require_group("health")
+        for key, value in summary.items():
+            g.attrs[key] = json.dumps(value) if isinstance(value, (list, dict)) else value
 
     def append(self, frame) -> None:
         """Append one ``protocol.Frame``."""
@@ -207,12 +235,15 @@ class Run:
         self.radius = self.f["particles/radius"][()]
         self.fixed = self.f["particles/fixed"][()]
         fr = self.f["frames"]
+        self.n_frames = int(fr["step"].shape[0])
         for name in FRAME_SCALARS:
-            setattr(self, name, fr[name][()])
-        self.n_frames = int(self.step.shape[0])
+            setattr(self, name, fr[name][()] if name in fr else np.full(self.n_frames, np.nan))
         self.offset = self.f["contacts/offset"][()]
         dep = self.f.get("deposition")
         self.deposition = dict(dep.attrs) if dep is not None else {}
+        h = self.f.get("health")
+        self.health = {k: json.loads(v) if k == "warnings" else v
+                       for k, v in (h.attrs.items() if h is not None else ())}
 
     def _check(self, k: int) -> int:
         if not -self.n_frames <= k < self.n_frames:

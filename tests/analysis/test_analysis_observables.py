@@ -18,6 +18,10 @@ import pytest
 from tiltpile.analysis import observables as ob
 from tiltpile.analysis import FRAME_COLUMNS, CLUSTER_COLUMNS, compute_observables, load_observables
 
+# the hand-built run has 3 frames and ~40 contacts, far below what the 2% cutoff resolves: the
+# ResolutionWarning that segment_avalanches issues for it is expected (tests/test_stability.py)
+pytestmark = pytest.mark.filterwarnings("ignore::tiltpile.analysis.ResolutionWarning")
+
 REQUIRED_FRAME = ["run", "frame", "theta_deg", "z", "n_m", "dz_gen", "ke_trans", "ke_rot",
                   "lost_fraction", "n_failing", "largest_cluster", "n_clusters", "cluster_fraction",
                   "avalanching", "theta_to_onset", "max_displacement"]

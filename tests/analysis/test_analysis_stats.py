@@ -191,3 +191,18 @@ def test_cluster_size_windows():
     assert (np.abs(w["delta"] - 2.0) < 3 * w["delta_err"]).all()
     few = st.cluster_size_windows(cl, frames, width=1.0, lo=-2.0, hi=0.0, min_samples=5000)
     assert few["fit_error"].str.contains("need at least 5000").all() and few["xi"].isna().all()
+
+
+def test_last_frame_placeholder_never_enters_the_correlation():
+    # observables.py writes n_lost = -1 and lost_fraction = NaN at a run's last frame (no k + 1);
+    # a perfectly correlated series must stay perfectly correlated with that row present
+    rows = []
+    for run in (1, 2):
+        a = np.r_[np.arange(1.0, 21.0), 0.0]
+        b = np.r_[2 * np.arange(1.0, 21.0), -1.0]
+        lf = np.r_[np.full(20, 0.001), np.nan]
+        rows.append(pd.DataFrame({"run": run, "frame": np.arange(21), "largest_cluster": a,
+                                  "n_lost": b, "lost_fraction": lf, "avalanching": False,
+                                  "period": 0}))
+    c = st.correlation_function_ensemble(pd.concat(rows), taus=[0]).set_index("tau")
+    assert c.loc[0, "C"] == pytest.approx(1.0) and c.loc[0, "n_pairs"] == 2 * 20

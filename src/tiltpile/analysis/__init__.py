@@ -18,7 +18,10 @@ Quick use::
 """
 
 from .avalanche import (
+    ResolutionWarning,
+    criterion_resolution,
     displacement_since_period_start,
+    frame_spacing_check,
     onset_robustness,
     onset_robustness_ensemble,
     resegment,
@@ -66,6 +69,7 @@ from .observables import (
 )
 from .stats import (
     InsufficientDataError,
+    PoorFitWarning,
     PowerLawCutoffFit,
     cluster_peaks,
     cluster_size_windows,

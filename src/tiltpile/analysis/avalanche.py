@@ -14,6 +14,24 @@ last configuration before the contacts it lists are lost.
 * theta - theta_m (column ``theta_to_onset``): for a quiet frame, relative to the *next* onset
   (<= 0; NaN when no onset follows); for an avalanching frame, relative to the onset of the
   avalanche it belongs to (>= 0).
+
+Where the cutoff stops separating quiet from avalanching frames (``ResolutionWarning``; both
+checks run in :func:`segment_avalanches`; ``tests/test_stability.py`` shows them on synthetic
+and simulated series):
+
+* Small piles (:func:`criterion_resolution`). Lost contacts are integers: with C active contacts
+  a frame is avalanching when it loses more than cutoff * C of them. Below ``MIN_LOST_CONTACTS``
+  = 3 (C < 150 at 2%) a single grain rolling off its neighbours -- it has z ~ 3-4 contacts and
+  loses 1-3 -- already counts as an avalanche, and binomial noise of the quiet losses crosses the
+  cutoff while small avalanches fall below it (at C = 50 the cutoff is one contact). Smoke piles
+  (250 grains) have C ~ 410, i.e. 8 contacts; a 60-grain pile ~100, i.e. 2.
+* Frames too far apart (:func:`frame_spacing_check`). Quiet frames lose contacts at a rate per
+  degree, so their lost fraction grows with the spacing of frames. In a tilt run most frames are
+  quiet (smoke: 7-23% avalanching), so when the median lost fraction over all frames exceeds
+  cutoff / 2 the quiet population reaches the cutoff and "avalanching" stands for "far apart".
+  Measured on a smoke run (seed 1, frames every 0.1 deg): the median is 0 at the recorded
+  spacing, 0.0098 with every 10th frame (1 deg) and 0.0135 with every 20th (2 deg), where the
+  first frame above 2% moves from 8.1 to 12 deg.
 """
 
 from __future__ import annotations
@@ -21,20 +39,78 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+import warnings
+
 from .contacts import displacement
+
+MIN_LOST_CONTACTS = 3.0  # cutoff * contacts below this: the cutoff does not resolve avalanches
+SPACING_LIMIT = 0.5      # median lost fraction above this times the cutoff: frames too far apart
+
+
+class ResolutionWarning(RuntimeWarning):
+    """The lost-contact cutoff cannot separate quiet from avalanching frames in these data."""
+
+
+def criterion_resolution(n_contacts, cutoff: float = 0.02, min_lost: float = MIN_LOST_CONTACTS,
+                         warn: bool = True) -> float:
+    """How many lost contacts the cutoff stands for: cutoff * median(n_contacts) (module docstring).
+
+    n_contacts: active contacts per frame (array) or one number. Issues a ``ResolutionWarning``
+    (if ``warn``) when the result is below ``min_lost``; NaN when no count is finite.
+    """
+    c = np.asarray(n_contacts, dtype=float).ravel()
+    c = c[np.isfinite(c)]
+    if c.size == 0:
+        return float("nan")
+    lost = float(cutoff * np.median(c))
+    if warn and lost < min_lost:
+        warnings.warn(f"avalanche cutoff {cutoff:g} of {np.median(c):.0f} active contacts is "
+                      f"{lost:.2g} lost contacts < {min_lost:g}: one grain's rearrangement counts as "
+                      "an avalanche and the quiet and avalanching frames are not separated (use a "
+                      f"bigger pile, >= {min_lost / cutoff:.0f} contacts, or a larger cutoff)",
+                      ResolutionWarning, stacklevel=2)
+    return lost
+
+
+def frame_spacing_check(lost_fraction, cutoff: float = 0.02, limit: float = SPACING_LIMIT,
+                        warn: bool = True) -> float:
+    """Median lost fraction over the frames, in units of the cutoff (module docstring).
+
+    Issues a ``ResolutionWarning`` (if ``warn``) when it exceeds ``limit`` (1/2): the quiet frames
+    then lose nearly the cutoff between two frames, i.e. frames are too far apart for the cutoff.
+    NaN values are ignored (NaN when none is finite).
+    """
+    lf = np.asarray(lost_fraction, dtype=float).ravel()
+    lf = lf[np.isfinite(lf)]
+    if lf.size == 0 or cutoff <= 0:
+        return float("nan")
+    ratio = float(np.median(lf) / cutoff)
+    if warn and ratio > limit:
+        warnings.warn(f"median lost fraction {np.median(lf):.3g} over {lf.size} frames exceeds "
+                      f"{limit:g} x the avalanche cutoff {cutoff:g}: quiet frames lose nearly the "
+                      "cutoff between two frames, so frames are too far apart (record frames more "
+                      "often) or the cutoff is too low", ResolutionWarning, stacklevel=2)
+    return ratio
 
 
 def segment_avalanches(lost_fraction: np.ndarray, cutoff: float = 0.02,
-                       merge_gap: int = 0) -> dict:
+                       merge_gap: int = 0, n_contacts=None) -> dict:
     """Split a run into quiet and avalanching periods (module docstring).
 
     lost_fraction (F,) in [0, 1] (NaN allowed); cutoff: threshold on the lost fraction;
-    merge_gap: quiet stretches strictly shorter than this, between avalanches, are merged.
+    merge_gap: quiet stretches strictly shorter than this, between avalanches, are merged;
+    n_contacts: active contacts per frame (or one number), optional: when given, the cutoff's
+    resolution is checked (:func:`criterion_resolution`). The frame spacing is always checked
+    (:func:`frame_spacing_check`). Both issue ``ResolutionWarning``; the segmentation is returned
+    all the same.
 
     Returns dict of arrays: avalanching (F,) bool, onsets (K,) int64 frame indices,
     period (F,) int64 period id, period_start (F,) int64 first frame of each frame's period.
     """
     lf = np.asarray(lost_fraction, dtype=float)
+    if n_contacts is not None:
+        criterion_resolution(n_contacts, cutoff)
+    frame_spacing_check(lf, cutoff)
     nf = lf.size
     av = np.zeros(nf, dtype=bool)
     prev = False
@@ -158,7 +234,8 @@ def displacement_since_period_start(positions: np.ndarray, period_start: np.ndar
 def resegment(frames: pd.DataFrame, cutoff: float = 0.02, merge_gap: int = 0) -> pd.DataFrame:
     """Recompute avalanching / onset / theta_m / theta_to_onset of a per-frame table.
 
-    frames: DataFrame with columns run, frame, theta_deg, lost_fraction (as from
+    frames: DataFrame with columns run, frame, theta_deg, lost_fraction (and n_active, if present,
+    for the resolution check of :func:`segment_avalanches`) (as from
     :func:`tiltpile.analysis.load_observables`). Returns a copy with columns avalanching, onset
     (bool: frame is an onset), period, theta_m, theta_to_onset recomputed for ``cutoff``.
     (Displacement columns are not recomputed.)
@@ -166,7 +243,8 @@ def resegment(frames: pd.DataFrame, cutoff: float = 0.02, merge_gap: int = 0) ->
     out = frames.sort_values(["run", "frame"]).copy()
     parts = []
     for _, g in out.groupby("run", sort=False):
-        seg = segment_avalanches(g["lost_fraction"].to_numpy(), cutoff, merge_gap)
+        seg = segment_avalanches(g["lost_fraction"].to_numpy(), cutoff, merge_gap,
+                                 n_contacts=g["n_active"].to_numpy() if "n_active" in g else None)
         rel = theta_relative_to_onset(g["theta_deg"].to_numpy(), seg["avalanching"], seg["onsets"])
         onset = np.zeros(len(g), dtype=bool)
         onset[seg["onsets"]] = True

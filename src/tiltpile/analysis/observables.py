@@ -235,7 +235,8 @@ def run_observables(run, run_id: int | None = None, **params) -> tuple[pd.DataFr
     frames["theta_deg"] = theta
     frames["iterations"] = np.asarray(run.iterations)
     frames["residual"] = np.asarray(run.residual, dtype=float)
-    seg = _av.segment_avalanches(frames["lost_fraction"].to_numpy(), p["cutoff"], p["merge_gap"])
+    seg = _av.segment_avalanches(frames["lost_fraction"].to_numpy(), p["cutoff"], p["merge_gap"],
+                                 n_contacts=frames["n_active"].to_numpy())
     rel = _av.theta_relative_to_onset(theta, seg["avalanching"], seg["onsets"])
     onset = np.zeros(nfr, dtype=bool)
     onset[seg["onsets"]] = True

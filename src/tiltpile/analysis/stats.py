@@ -13,6 +13,7 @@
 
 from __future__ import annotations
 
+import warnings
 from dataclasses import dataclass
 
 import numpy as np
@@ -22,6 +23,18 @@ from scipy import integrate, optimize
 
 class InsufficientDataError(ValueError):
     """Too few samples for a meaningful estimate (the message says how many and how many needed)."""
+
+
+class PoorFitWarning(RuntimeWarning):
+    """A fit ran but its result is not determined by the data (the message says why)."""
+
+
+# Largest one-sigma error of a free delta for which fit_power_law_cutoff stays silent. Measured
+# (20 samples of P(s) with delta = 2, fitted freely; the Fisher error agrees with the spread of
+# the estimates): delta_err ~ 1.3 / 0.73 / 0.52 / 0.37 / 0.25 at n = 20 / 50 / 100 / 200 / 500
+# for xi = 5, and 0.77 / 0.38 / 0.27 / 0.19 at n = 20 / 50 / 100 / 200 for xi = 20. An exponent
+# known to +-0.5 cannot tell the paper's delta from its neighbours, so past that the fit warns.
+MAX_DELTA_ERR = 0.5
 
 
 # ----------------------------------------------------------------------------------------------
@@ -162,7 +175,8 @@ class PowerLawCutoffFit:
 
 
 def fit_power_law_cutoff(s, s_min: int = 1, delta: float | None = None, min_samples: int = 50,
-                         xi_bounds=(1e-2, 1e7), delta_bounds=(-5.0, 10.0)) -> PowerLawCutoffFit:
+                         xi_bounds=(1e-2, 1e7), delta_bounds=(-5.0, 10.0),
+                         max_delta_err: float | None = MAX_DELTA_ERR) -> PowerLawCutoffFit:
     """Fit the discrete law P(s) = s^-delta exp(-s/xi) / Z, s = s_min, s_min + 1, ... (paper Eq. 3).
 
     Maximises the exact discrete log-likelihood
@@ -173,7 +187,11 @@ def fit_power_law_cutoff(s, s_min: int = 1, delta: float | None = None, min_samp
 
     s: cluster sizes (integers; values < s_min are ignored). Raises InsufficientDataError when
     fewer than ``min_samples`` sizes are >= s_min or when they take fewer than 3 distinct values
-    (2 with delta fixed): the likelihood then has no finite maximum.
+    (2 with delta fixed): the likelihood then has no finite maximum. Warns (``PoorFitWarning``)
+    when a free delta comes out with an error above ``max_delta_err`` (default ``MAX_DELTA_ERR`` =
+    0.5; None: never): ``min_samples`` = 50 is the least that can be fitted, but a short cutoff
+    (xi ~ 5) needs 100-200 clusters to pin delta to +-0.5. Warns (RuntimeWarning) when xi ends at
+    its bound.
     """
     s = np.asarray(s).ravel()
     s = s[np.isfinite(s)]
@@ -219,7 +237,6 @@ def fit_power_law_cutoff(s, s_min: int = 1, delta: float | None = None, min_samp
     lam = np.exp(-u_hat)
     xi = 1.0 / lam
     if not (u_lo + 1e-6 < u_hat < u_hi - 1e-6):
-        import warnings
         warnings.warn(f"fit_power_law_cutoff: xi = {xi:.3g} is at its bound {xi_bounds}; "
                       "the data do not constrain the cutoff", RuntimeWarning, stacklevel=2)
     z, m1, m2, m11, m22, m12 = _series(d_hat, lam, s_min,
@@ -238,6 +255,11 @@ def fit_power_law_cutoff(s, s_min: int = 1, delta: float | None = None, min_samp
         cov = np.zeros((2, 2))
         cov[1, 1] = 1.0 / (n * var_s) if var_s > 0 else np.nan
     d_err = float(np.sqrt(cov[0, 0])) if delta is None else 0.0
+    if delta is None and max_delta_err is not None and not d_err <= max_delta_err:
+        warnings.warn(f"fit_power_law_cutoff: delta = {d_hat:.2f} +- {d_err:.2f} from {n} sizes: the "
+                      f"error exceeds max_delta_err = {max_delta_err:g}, the data do not determine "
+                      "the exponent (more clusters, or hold delta fixed)", PoorFitWarning,
+                      stacklevel=2)
     xi_err = float(np.sqrt(cov[1, 1]) * xi * xi)
     return PowerLawCutoffFit(delta=float(d_hat), xi=float(xi), delta_err=d_err, xi_err=xi_err,
                              cov=cov, n=int(n), s_min=int(s_min), loglik=float(-n * fun),
@@ -284,8 +306,10 @@ def cluster_size_windows(clusters: pd.DataFrame, frames: pd.DataFrame, width: fl
     delta: hold the exponent fixed (e.g. 2.5) and fit xi only.
 
     Returns a DataFrame, one row per window: left, right, center, n_frames, n_clusters,
-    mean_largest (<S_max> over the window's frames), delta, delta_err, xi, xi_err, and
-    fit_error (empty, or why the fit was refused).
+    mean_largest (<S_max> over the window's frames), delta, delta_err, xi, xi_err,
+    fit_error (empty, or why the fit was refused: fewer than ``min_samples`` clusters), and
+    fit_warning (empty, or the warnings of the fit: delta_err above ``MAX_DELTA_ERR``, xi at its
+    bound). The fit's warnings are recorded there, one per window, not issued.
     """
     fr = frames[~frames["avalanching"].astype(bool) & np.isfinite(frames["theta_to_onset"])]
     fr = fr[["run", "frame", "theta_to_onset", "largest_cluster"]]
@@ -298,11 +322,15 @@ def cluster_size_windows(clusters: pd.DataFrame, frames: pd.DataFrame, width: fl
         c = cl[(cl["theta_to_onset"] >= a) & (cl["theta_to_onset"] < b)]
         row = {"left": a, "right": b, "center": 0.5 * (a + b), "n_frames": len(f),
                "n_clusters": len(c), "mean_largest": f["largest_cluster"].mean() if len(f) else np.nan,
-               "delta": np.nan, "delta_err": np.nan, "xi": np.nan, "xi_err": np.nan, "fit_error": ""}
+               "delta": np.nan, "delta_err": np.nan, "xi": np.nan, "xi_err": np.nan, "fit_error": "",
+               "fit_warning": ""}
         try:
-            fit = fit_power_law_cutoff(c["size"].to_numpy(), s_min=s_min, delta=delta,
-                                       min_samples=min_samples)
-            row.update(delta=fit.delta, delta_err=fit.delta_err, xi=fit.xi, xi_err=fit.xi_err)
+            with warnings.catch_warnings(record=True) as caught:
+                warnings.simplefilter("always")
+                fit = fit_power_law_cutoff(c["size"].to_numpy(), s_min=s_min, delta=delta,
+                                           min_samples=min_samples)
+            row.update(delta=fit.delta, delta_err=fit.delta_err, xi=fit.xi, xi_err=fit.xi_err,
+                       fit_warning="; ".join(str(w.message) for w in caught))
         except InsufficientDataError as exc:
             row["fit_error"] = str(exc)
         rows.append(row)
@@ -379,8 +407,23 @@ def correlation_function_ensemble(frames: pd.DataFrame, a: str = "largest_cluste
     straddle two runs or two periods; means and variances are over the pooled pairs.
     """
     f = frames.sort_values(["run", "frame"])
-    return correlation_function(f[a].to_numpy(), f[b].to_numpy(), ~f["avalanching"].to_numpy(bool),
+    return correlation_function(_column(f, a), _column(f, b), ~f["avalanching"].to_numpy(bool),
                                 taus, period=ensemble_periods(f))
+
+
+# per-frame columns counted forward, from frame k to k + 1: undefined at a run's last frame,
+# where observables.py writes lost_fraction = NaN and -1 in the integer counts
+FORWARD_COLUMNS = ("n_lost", "lost_fraction", "n_failing", "n_failing_in_cluster",
+                   "failing_in_cluster_fraction")
+
+
+def _column(frames: pd.DataFrame, name: str) -> np.ndarray:
+    """A per-frame column as float; a forward column is NaN where it is undefined (the last frame
+    of each run, lost_fraction NaN), so the -1 placeholder never enters a mean or a correlation."""
+    x = frames[name].to_numpy(float).copy()
+    if name in FORWARD_COLUMNS and "lost_fraction" in frames:
+        x[~np.isfinite(frames["lost_fraction"].to_numpy(float))] = np.nan
+    return x
 
 
 def cluster_peaks(s_max, quiet, period=None, threshold_sigma: float = 1.0) -> np.ndarray:
@@ -437,8 +480,8 @@ def failure_enhancement_ensemble(frames: pd.DataFrame, a: str = "largest_cluster
     for _, g in frames.sort_values(["run", "frame"]).groupby("run", sort=False):
         quiet = ~g["avalanching"].to_numpy(bool)
         per = g["period"].to_numpy()
-        s = g[a].to_numpy(float)
-        nf = g[b].to_numpy(float)
+        s = _column(g, a)
+        nf = _column(g, b)
         peaks = cluster_peaks(s, quiet, per, threshold_sigma)
         base_sum, base_n = np.nansum(nf[quiet]), int(np.isfinite(nf[quiet]).sum())
         for tau in taus:

@@ -17,6 +17,23 @@ Events: ``Deposited`` (summary), ``Frame`` (arrays of one frame), ``Checkpoint``
 every ``checkpoint_every`` frames and every ``DEPOSITION_CHUNK * 10`` deposition steps), and
 ``Progress`` (for progress bars). Resuming from a checkpoint's state gives the same events after
 it, bit for bit, as the uninterrupted run: every chunk boundary is a fixed multiple of steps.
+
+Health (``config.HealthConfig``). Every chunk of steps is checked against the stop limits, and
+``SimulationError`` names the limit, the measured value, the step and what to change:
+
+* overlap: any step, deposition included, whose largest overlap exceeds ``overlap_stop``;
+* energy: a tilt step whose kinetic energy grows by more than the work of gravity by over
+  ``energy_stop`` per mobile grain (``StepRecord.energy_gain``);
+* iteration cap: more than ``cap_hit_stop_fraction`` of the steps at ``solver.tol`` so far hit
+  ``solver.max_iter``, judged once ``CAP_HIT_MIN_STEPS`` such steps have been made (the counters
+  live in the checkpointed scalars, so a resumed run judges the same totals).
+
+Frames carry the per-step flags of their window (``max_overlap``, ``energy_gain``, ``cap_hits``,
+``missed``); the warn limits are applied to them by ``runner.simulate``. Deposition has no energy
+or cap-hit limit: it solves to the looser ``deposition_tol``, and only its end state matters. The
+settling steps of frame 0 count towards the cap-hit fraction but are not judged for energy: they
+re-solve the deposited pile from ``deposition_tol`` to ``solver.tol`` and release what the looser
+solve left (default preset: up to 1.3e-6 m g d per grain, against <= 1.1e-7 in every tilt frame).
 """
 
 from __future__ import annotations
@@ -33,6 +50,7 @@ from tiltpile.sim.step import System
 
 DEPOSITION_CHUNK = 200
 OUT_OF_BOX = 2.0  # [d]: a grain this far outside the box means the integration has failed
+CAP_HIT_MIN_STEPS = 500  # steps at solver.tol before the cap-hit fraction is judged
 
 
 class SimulationError(RuntimeError):
@@ -45,6 +63,8 @@ class Deposited:
     time: float
     ke_per_grain: float
     height: float  # highest grain top [d]
+    max_overlap: float = 0.0  # largest overlap of any deposition step [d]
+    missed: int = 0           # deposition steps where a grain outran the alert distance
 
 
 @dataclass
@@ -67,6 +87,8 @@ class Frame:
     max_iterations: int    # most sweeps of a step since the previous frame
     cap_hits: int          # steps since the previous frame that hit max_iter
     missed: int            # steps since the previous frame where a grain outran the alert distance
+    energy_gain: float     # largest per-step KE gain beyond the work of gravity since the previous
+                           # frame [m g d] (<= 0 up to solver error; sim/step.py)
 
 
 @dataclass
@@ -114,25 +136,70 @@ def _check_sane(sysm: System, box_length: float) -> None:
                               "(time step too large or solver not converged)")
 
 
-def _frame(sysm: System, protocol, dt: float, last_iter: int, last_res: float, window) -> Frame:
+def _frame(sysm: System, protocol, dt: float, rec) -> Frame:
+    """The current state as a frame; ``rec`` is the StepRecord of the steps since the last one."""
     sc = sysm.scalars
     pair, force, status = sysm.contacts()
-    its, overlap, missed = window
+    its = rec.iterations
     return Frame(index=sc["frame"], step=sc["step"], time=sc["step"] * dt,
                  theta_deg=sc["tilt_step"] * protocol.tilt_per_step_deg,
                  position=sysm.pos.copy(), rotation=sysm.rot.copy(), velocity=sysm.velocity.copy(),
-                 omega=sysm.omega.copy(), iterations=int(last_iter), residual=float(last_res),
+                 omega=sysm.omega.copy(), iterations=int(its[-1]), residual=float(rec.residual[-1]),
                  pair=pair, force=force, status=status, ke=float(_ke(sysm)),
-                 max_overlap=float(overlap), max_iterations=int(its.max()) if its.size else 0,
-                 cap_hits=int((its >= sysm.params["max_iter"]).sum()), missed=int(missed))
+                 max_overlap=float(rec.overlap.max()), max_iterations=int(its.max()),
+                 cap_hits=int((its >= sysm.params["max_iter"]).sum()), missed=int(rec.missed.sum()),
+                 energy_gain=float(rec.energy_gain.max()))
 
 
 def _ke(sysm: System) -> float:
-    v = sysm.vel[: sysm.n]
-    m = np.zeros(sysm.n)
-    mob = v[:, 3] > 0
-    m[mob] = 1.0 / v[mob, 3]
-    return float(0.5 * np.sum(m * (v[:, 0] ** 2 + v[:, 1] ** 2 + 0.5 * v[:, 2] ** 2)))
+    return sysm.kinetic_energy()
+
+
+def _check_health(sysm: System, rec, health, n_mobile: int, phase: str, theta0_deg: float = 0.0,
+                  dtheta_deg: float = 0.0) -> None:
+    """Raise SimulationError past a stop limit of ``health`` (module docstring).
+
+    Call after ``scalars["step"]`` has been advanced past the chunk ``rec``; ``phase`` is
+    "deposit", "settle" or "tilt" (energy is judged in the tilt only, cap hits outside
+    deposition).
+    """
+    sc = sysm.scalars
+    k = rec.overlap.size
+    first = sc["step"] - k  # global step before the chunk
+
+    def where(i: int) -> str:
+        return (f"at step {first + i + 1} ({phase} phase, theta = "
+                f"{theta0_deg + (i + 1) * dtheta_deg:.3f} deg)")
+
+    i = int(np.argmax(rec.overlap))
+    if rec.overlap[i] > health.overlap_stop:
+        raise SimulationError(
+            f"health.overlap_stop exceeded: grains overlap by {rec.overlap[i]:.3g} d {where(i)}, "
+            f"limit {health.overlap_stop:g} d. Grains move too far per step for the contact "
+            "model (missed contacts, linearised gaps): reduce solver.dt; if solver.max_iter is "
+            "being hit, tighten solver.tol or raise solver.max_iter.")
+    if phase == "deposit":
+        return
+    gain = rec.energy_gain / n_mobile
+    i = int(np.argmax(gain))
+    if phase == "tilt" and gain[i] > health.energy_stop:
+        raise SimulationError(
+            f"health.energy_stop exceeded: the kinetic energy grew by {gain[i]:.3g} m g d per grain "
+            f"more than gravity did work {where(i)}, limit {health.energy_stop:g}. Contacts "
+            "created energy: the solver is not converged (tighten solver.tol, raise "
+            "solver.max_iter) or overlaps are being pushed out (reduce solver.dt).")
+    caps = int((rec.iterations >= sysm.params["max_iter"]).sum())
+    sc["tol_steps"] = sc.get("tol_steps", 0) + k
+    sc["tol_cap_hits"] = sc.get("tol_cap_hits", 0) + caps
+    frac = sc["tol_cap_hits"] / sc["tol_steps"]
+    if sc["tol_steps"] >= CAP_HIT_MIN_STEPS and frac > health.cap_hit_stop_fraction:
+        raise SimulationError(
+            f"health.cap_hit_stop_fraction exceeded: {sc['tol_cap_hits']} of the {sc['tol_steps']} "
+            f"steps at solver.tol up to step {sc['step']} ({phase} phase, theta = "
+            f"{theta0_deg + k * dtheta_deg:.3f} deg) hit solver.max_iter = "
+            f"{sysm.params['max_iter']} ({frac:.1%}, limit {health.cap_hit_stop_fraction:.1%}): the "
+            "NLGS never converges, the grains behave as soft springs. Raise solver.max_iter (or "
+            "loosen solver.tol).")
 
 
 def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Frame | Checkpoint | Progress]:
@@ -141,20 +208,29 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Fr
     if state is not None:
         sysm.restore(state)
     sc = sysm.scalars
-    proto, dt = config.protocol, config.solver.dt
+    proto, dt, health = config.protocol, config.solver.dt, config.health
     n_mobile = int((~sysm.fixed).sum())
+    last_caps = None
 
     sysm.params["tol"] = config.solver.deposition_tol
     while sc["phase"] == "deposit":
         if sc["deposition_steps"] >= proto.max_deposition_steps:
+            caps = "" if last_caps is None else (
+                f"; {last_caps:.0%} of the last {DEPOSITION_CHUNK} steps hit solver.max_iter = "
+                f"{config.solver.max_iter} (if many, raise it or loosen solver.deposition_tol)")
             raise SimulationError(
                 f"deposition not at rest after {sc['deposition_steps']} steps "
-                f"(kinetic energy per grain {_ke(sysm) / n_mobile:.3g} > rest_ke {proto.rest_ke:g}); "
-                "raise protocol.max_deposition_steps or rest_ke")
+                f"(kinetic energy per grain {_ke(sysm) / n_mobile:.3g} > rest_ke {proto.rest_ke:g}"
+                f"{caps}); raise protocol.max_deposition_steps or rest_ke")
         rec = sysm.advance(DEPOSITION_CHUNK, 0.0, 0.0)
         sc["step"] += DEPOSITION_CHUNK
         sc["deposition_steps"] += DEPOSITION_CHUNK
         sc["rebuilds"] += rec.rebuilds
+        last_caps = float((rec.iterations >= config.solver.max_iter).mean())
+        sc["deposition_max_overlap"] = max(sc.get("deposition_max_overlap", 0.0),
+                                           float(rec.overlap.max()))
+        sc["deposition_missed"] = sc.get("deposition_missed", 0) + int(rec.missed.sum())
+        _check_health(sysm, rec, health, n_mobile, "deposit")
         _check_sane(sysm, config.scene.box_length)
         for quiet in rec.ke / n_mobile < proto.rest_ke:
             sc["rest_count"] = sc["rest_count"] + 1 if quiet else 0
@@ -163,13 +239,15 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Fr
             sc["phase"] = "tilt"
             top = float(np.max(sysm.pos[:, 1] + sysm.radius))
             sc["deposition_height"] = top
-            yield Deposited(sc["deposition_steps"], sc["step"] * dt, _ke(sysm) / n_mobile, top)
+            yield Deposited(sc["deposition_steps"], sc["step"] * dt, _ke(sysm) / n_mobile, top,
+                            sc["deposition_max_overlap"], sc["deposition_missed"])
             # frame 0: the deposited pile brought to the tilt tolerance, rest_steps steps at theta = 0
             sysm.params["tol"] = config.solver.tol
             rec = sysm.advance(proto.rest_steps, 0.0, 0.0)
             sc["step"] += proto.rest_steps
-            yield _frame(sysm, proto, dt, rec.iterations[-1], rec.residual[-1],
-                         (rec.iterations, rec.overlap.max(), rec.missed.sum()))
+            _check_health(sysm, rec, health, n_mobile, "settle")
+            _check_sane(sysm, config.scene.box_length)
+            yield _frame(sysm, proto, dt, rec)
             sc["frame"] = 1
             yield Checkpoint(sysm.state())
         elif (sc["deposition_steps"] // DEPOSITION_CHUNK) % 10 == 0:
@@ -184,10 +262,10 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Fr
         sc["step"] += k
         sc["tilt_step"] += k
         sc["rebuilds"] += rec.rebuilds
+        _check_health(sysm, rec, health, n_mobile, "tilt", theta0, proto.tilt_per_step_deg)
         _check_sane(sysm, config.scene.box_length)
         if k == proto.frame_every:
-            yield _frame(sysm, proto, dt, rec.iterations[-1], rec.residual[-1],
-                         (rec.iterations, rec.overlap.max(), rec.missed.sum()))
+            yield _frame(sysm, proto, dt, rec)
             sc["frame"] += 1
         yield Progress("tilt", sc["step"], sc["tilt_step"] * proto.tilt_per_step_deg,
                        float(rec.iterations.mean()))

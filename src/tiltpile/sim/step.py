@@ -14,9 +14,18 @@ A step from t to t + dt, with gravity g(theta) = (sin theta, -cos theta) (g = 1)
    positions, first order, dissipative, no energy drift).
 
 Per step ``advance`` records: NLGS sweeps and final residual, the largest overlap at the start of
-the step (max(-g), 0 if none), the kinetic energy of mobile grains, and whether a grain moved
-farther than alert / 2 since the last build after the step (a contact could have been missed:
-the time step is too large for the alert distance).
+the step (max(-g), 0 if none), the kinetic energy of mobile grains, the work of gravity over the
+step (dt sum_i m_i g . v_i(t + dt), exactly the work along the implicit-Euler displacement), and
+whether a grain moved farther than alert / 2 since the last build after the step (a contact could
+have been missed: the time step is too large for the alert distance).
+
+Energy balance. With perfectly inelastic contacts, Coulomb friction and a converged solver the
+change of kinetic energy over a step is at most the work of gravity: with v' = v + dt g + M^-1 H p,
+Delta KE = W_g + sum p . u' - 1/2 sum m |v' - v|^2 (rotation included), where the contact power
+p_n u_n = -p_n gap / dt is <= 0 unless the gap is negative (an overlap being pushed out) and
+p_t u_t <= 0 by maximal dissipation. So
+Delta KE - W_g > 0 (``StepRecord.energy_gain``) means spurious energy: overlaps relaxed by the gap
+term, or an unconverged solver.
 """
 
 from __future__ import annotations
@@ -70,7 +79,7 @@ def contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall):
 @njit
 def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state, perm,
             box_length, dt, alert, mu, mu_wall, tol, max_iter, mode, gravity,
-            theta0, dtheta, n_steps, out_iter, out_res, out_overlap, out_ke, out_missed):
+            theta0, dtheta, n_steps, out_iter, out_res, out_overlap, out_ke, out_work, out_missed):
     """Advance ``n_steps`` steps; gravity angle of step k is theta0 + (k + 1) dtheta [rad],
     its magnitude ``gravity`` (1 in every run; 0 in some validation tests).
 
@@ -109,6 +118,7 @@ def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state
         out_iter[k] = it
         out_res[k] = res
         ke = 0.0
+        work = 0.0
         moved = 0.0
         for i in range(n):
             im = vel[i, 3]
@@ -117,26 +127,41 @@ def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state
                 pos[i, 1] += dt * vel[i, 1]
                 rot[i] += dt * vel[i, 2] / radius[i]
                 ke += 0.5 * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + 0.5 * vel[i, 2] ** 2) / im
+                work += dt * (gx * vel[i, 0] + gy * vel[i, 1]) / im
                 ddx = pos[i, 0] - ref[i, 0]
                 ddy = pos[i, 1] - ref[i, 1]
                 moved = max(moved, ddx * ddx + ddy * ddy)
         out_ke[k] = ke
+        out_work[k] = work
         out_missed[k] = moved > half * half
     return ci, cj, key, c, status, perm, rebuilds
 
 
 class StepRecord:
-    """Per-step diagnostics of one ``System.advance`` call (arrays of length n_steps)."""
+    """Per-step diagnostics of one ``System.advance`` call (arrays of length n_steps).
 
-    __slots__ = ("iterations", "residual", "overlap", "ke", "missed", "rebuilds")
+    ``ke0`` is the kinetic energy before the first step, ``work`` the work of gravity per step;
+    ``energy_gain`` (property) is Delta KE - W_g per step, <= 0 up to solver error (module
+    docstring).
+    """
+
+    __slots__ = ("iterations", "residual", "overlap", "ke", "work", "missed", "rebuilds", "ke0")
 
     def __init__(self, n_steps: int):
         self.iterations = np.zeros(n_steps, np.int64)
         self.residual = np.zeros(n_steps)
         self.overlap = np.zeros(n_steps)
         self.ke = np.zeros(n_steps)
+        self.work = np.zeros(n_steps)
         self.missed = np.zeros(n_steps, np.bool_)
         self.rebuilds = 0
+        self.ke0 = 0.0
+
+    @property
+    def energy_gain(self) -> np.ndarray:
+        """Kinetic energy gained in each step beyond the work of gravity [m g d]."""
+        before = np.concatenate([[self.ke0], self.ke[:-1]])
+        return self.ke - before - self.work
 
 
 class System:
@@ -176,14 +201,23 @@ class System:
     def advance(self, n_steps: int, theta0_deg: float, dtheta_deg: float) -> StepRecord:
         """Run ``n_steps`` steps; step k (0-based) feels gravity at theta0 + (k + 1) dtheta."""
         rec = StepRecord(n_steps)
+        rec.ke0 = self.kinetic_energy()
         p = self.params
         (self.ci, self.cj, self.key, self.c, self.status, self.perm, rec.rebuilds) = advance(
             self.pos, self.rot, self.vel, self.radius, self.fixed, self.ref, self.ci, self.cj, self.key,
             self.c, self.status, self.rng, self.perm, p["box_length"], p["dt"], p["alert"], p["mu"],
             p["mu_wall"], p["tol"], p["max_iter"], p["mode"], p["gravity"], math.radians(theta0_deg),
             math.radians(dtheta_deg), n_steps, rec.iterations, rec.residual, rec.overlap, rec.ke,
-            rec.missed)
+            rec.work, rec.missed)
         return rec
+
+    def kinetic_energy(self) -> float:
+        """Kinetic energy of the mobile grains (translation and rotation, I = m r^2 / 2) [m g d]."""
+        v = self.vel[: self.n]
+        m = np.zeros(self.n)
+        mob = v[:, 3] > 0
+        m[mob] = 1.0 / v[mob, 3]
+        return float(0.5 * np.sum(m * (v[:, 0] ** 2 + v[:, 1] ** 2 + 0.5 * v[:, 2] ** 2)))
 
     # -- views used by the protocol and the tests ---------------------------------------------
     @property
