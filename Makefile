@@ -28,14 +28,33 @@ test: setup
 test-fast: setup
 	$(PY) -m pytest -q -m "not slow"
 
+# `make figures [PRESET=default|smoke|paper] [RUNS=M] [SCHEDULER=tcp://host:port] [WORKERS=W]`:
+# the ensemble (finished runs are skipped, interrupted ones resume), its observables, every figure
+# notebook through papermill (executed copies in notebooks/executed/PRESET/), then the reproduction
+# report. The default preset writes figures/ and paper/REPRODUCTION.md (both committed); other
+# presets write figures/PRESET/ and its own REPRODUCTION.md there.
+RUNS_smoke := 4
+RUNS_default := 6
+RUNS_paper := 50
+RUNS ?= $(RUNS_$(PRESET))
+FIGURES ?= $(if $(filter default,$(PRESET)),figures,figures/$(PRESET))
+REPORT ?= $(if $(filter default,$(PRESET)),paper/REPRODUCTION.md,$(FIGURES)/REPRODUCTION.md)
+EXECUTED := notebooks/executed/$(PRESET)
+ENSEMBLE_ARGS := $(if $(SCHEDULER),--scheduler $(SCHEDULER)) $(if $(WORKERS),--workers $(WORKERS))
+
 figures: setup
-	@if [ -z "$(NOTEBOOKS)" ]; then echo "no figure notebooks yet (see issue 5)"; fi
-	@mkdir -p notebooks/executed figures
+	@test -n "$(RUNS)" || { echo "unknown PRESET=$(PRESET): give RUNS=M"; exit 2; }
+	$(PY) -m tiltpile ensemble --preset $(PRESET) --runs $(RUNS) --out $(DATA) $(ENSEMBLE_ARGS)
+	$(PY) -m tiltpile observables $(DATA)
+	@mkdir -p $(EXECUTED) $(FIGURES)
 	@for nb in $(NOTEBOOKS); do \
-	  out=notebooks/executed/$$(basename $$nb); \
-	  $(PY) -m papermill --kernel tiltpile $$nb $$out -p data_dir $(DATA) -p preset $(PRESET) \
+	  out=$(EXECUTED)/$$(basename $$nb); \
+	  echo "papermill $$nb -> $$out"; \
+	  $(PY) -m papermill --kernel tiltpile --cwd $(CURDIR) --no-progress-bar $$nb $$out \
+	    -p data_dir $(DATA) -p preset $(PRESET) -p figures_dir $(FIGURES) \
 	    || { echo "papermill failed: $$nb (output notebook: $$out)"; exit 1; }; \
 	done
+	$(PY) -m tiltpile report --figures $(FIGURES) --out $(REPORT)
 
 bench: setup
 	$(PY) -m tiltpile bench

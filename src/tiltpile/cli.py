@@ -1,4 +1,4 @@
-"""Command line: ``tiltpile simulate | ensemble | observables | bench`` (also ``python -m tiltpile``).
+"""Command line: ``tiltpile simulate | ensemble | observables | report | bench`` (also ``python -m tiltpile``).
 
 Every command validates its whole input first; on bad input it prints one line naming the
 problem and exits with status 2, having written nothing.
@@ -47,9 +47,7 @@ def cmd_simulate(args) -> int:
     if out.exists():
         out.unlink()
     summary = simulate(cfg, args.seed, out, progress=not args.quiet, resume=not args.no_resume)
-    if summary["cap_hits"] or summary["missed"]:
-        print(f"warning: {summary['cap_hits']} steps hit solver.max_iter, {summary['missed']} steps "
-              "moved a grain beyond the alert distance", file=sys.stderr)
+    # health warnings past the [health] warn limits come as one RuntimeWarning on stderr
     print(json.dumps(summary))
     return 0
 
@@ -109,12 +107,10 @@ def build_parser() -> argparse.ArgumentParser:
     o.add_argument("--quiet", action="store_true", help="no progress bar")
     o.set_defaults(func=cmd_observables)
 
-    try:
-        from tiltpile.ensemble import add_parser as add_ensemble
-    except ImportError:  # pragma: no cover - the ensemble module is optional until it lands
-        add_ensemble = None
-    if add_ensemble is not None:
-        add_ensemble(sub)
+    from tiltpile.ensemble import add_parser as add_ensemble
+    from tiltpile.report import add_parser as add_report
+    add_ensemble(sub)
+    add_report(sub)
     return p
 
 

@@ -1,0 +1,187 @@
+"""Fig. 6: stability of the critical clusters versus their size.
+
+Paper, Fig. 6: "Cluster size effects on stability: a - Distribution of delta z for different
+cluster sizes, with binning that reflects the fundamental discreteness of the distributions. The
+curves have been shifted for clarity. b - In black (squares) is <delta z> for different cluster
+sizes and the global stability criterion (dash-dot). The blue dots are the minimal delta z obtained
+for each cluster size; the dashed line is the marginal stability criterion for a single grain."
+
+Which delta z
+-------------
+The text defines delta z = z - 2 n_m / d (the clusters table's ``dz`` column, 2D: z - n_m), but
+then says the distributions "progressively shift from negative delta z to a slightly positive one"
+and that the minimum goes "from the marginal local criterion [...] to close to the global
+stability criterion". z - n_m is never negative (each grain has z_i >= m_i), so the figure must
+measure delta z from the generalized isostaticity line of Eq. (1),
+
+    delta z = z - z_iso^gen = z - (d + 1) - 2 n_m / d     (2D: z - 3 - n_m),
+
+i.e. :func:`tiltpile.analysis.contacts.dz_gen` of the cluster's z and n_m (= dz - 3). This is what
+this module uses. Then
+
+* global criterion (Eq. 1, the whole cluster counted as one packing): delta z = 0 (dash-dot);
+* single-grain criterion, quoted by the paper: "for one particle to be stable, it must satisfy
+  the local stability criterion z - 2 n_m / d >= (d + 1) / 2, which states that the d z - 2 n_m
+  force components need to be able to constrain the d (d + 1) / 2 degrees of freedom of the
+  particle". In the units above: delta z >= (d + 1) / 2 - (d + 1) = -(d + 1) / 2 = -1.5 in 2D
+  (dashed). A single critical grain (n_m = 1/2) with z = 2 contacts sits exactly on it.
+
+Only the clusters of quiet frames are used unless ``quiet_only=False``.
+Library: :func:`tiltpile.analysis.stats.dz_distribution` (top),
+:func:`tiltpile.analysis.stats.dz_by_size` (bottom, classes and log-spaced size bins).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import pandas as pd
+
+from tiltpile.analysis import dz_by_size, dz_distribution, dz_gen
+
+from . import style
+
+D = 2
+DZ_GLOBAL = 0.0                          # Eq. (1): z = z_iso^gen
+DZ_SINGLE_GRAIN = (D + 1) / 2 - (D + 1)  # z - 2 n_m / d >= (d + 1) / 2, i.e. -1.5 in 2D
+TOL = 1e-9
+
+
+def log_size_edges(s_max: int, bins_per_decade: int = 5, s_min: int = 1) -> np.ndarray:
+    """Integer bin edges [a, b) for cluster sizes s_min..s_max, log-spaced.
+
+    Edges ceil(s_min 10^(k / bins_per_decade)), made distinct (so each small size gets its own
+    bin), the last one s_max + 1 -- the binning of
+    :func:`tiltpile.analysis.stats.discrete_log_binned_density`, which does not expose its edges.
+    """
+    top = int(max(s_max, s_min)) + 1
+    k = np.arange(0, int(np.ceil(np.log10(top / s_min) * bins_per_decade)) + 2)
+    e = np.unique(np.ceil(s_min * 10.0 ** (k / bins_per_decade)).astype(np.int64))
+    e = e[e < top]
+    return np.append(e, top)
+
+
+def class_label(lo: int, hi: int | None) -> str:
+    """"1", "3-4", "10+" for the sizes [lo, hi) (hi None: no upper end)."""
+    if hi is None:
+        return f"{lo}+"
+    return f"{lo}" if hi == lo + 1 else f"{lo}-{hi - 1}"
+
+
+def _slope(x, y) -> float:
+    """Least-squares slope of y versus x (NaN with fewer than 2 distinct x)."""
+    x = np.asarray(x, float)
+    y = np.asarray(y, float)
+    ok = np.isfinite(x) & np.isfinite(y)
+    if np.unique(x[ok]).size < 2:
+        return float("nan")
+    return float(np.polyfit(x[ok], y[ok], 1)[0])
+
+
+def compute(ens, size_classes=(1, 2, 3, 5, 10), bins_per_decade: int = 5,
+            quiet_only: bool = True, min_samples: int = 10):
+    """delta z (from the generalized isostaticity line) of clusters by size.
+
+    ens: :class:`tiltpile.figures.data.Ensemble`. size_classes: increasing lower bounds of the
+    size classes of the top panel, the last one open-ended ((1, 2, 3, 5, 10): 1, 2, 3-4, 5-9,
+    10+); bins_per_decade: log-spaced size bins of the bottom panel; quiet_only: clusters of quiet
+    frames only; min_samples: fewest clusters for a log bin to enter the trend numbers.
+
+    numbers:
+      classes: per class label: n, dz_mean, dz_min, dz_std (NaN when empty);
+      dz_global, dz_single_grain: the two criteria (0 and -1.5);
+      frac_below_single_grain: fraction of the clusters with delta z below the single-grain bound;
+      frac_single_on_bound: fraction of size-1 clusters exactly on it;
+      slope_per_decade: least-squares slope of <delta z> versus log10(size) over the log bins with
+        >= min_samples clusters (> 0: larger clusters are closer to / above the global line);
+      s_cross: lower edge of the first such bin with <delta z> >= 0 (the size from which clusters
+        are on average globally stable; NaN if none);
+      largest_bin: the last such bin's size_lo, n, dz_mean, dz_min.
+    """
+    cl = ens.clusters
+    if quiet_only:
+        cl = cl[~cl["avalanching"].to_numpy(bool)]
+    cl = cl.assign(dz=dz_gen(cl["z"].to_numpy(float), cl["n_m"].to_numpy(float), D))
+    s_max = int(cl["size"].max()) if len(cl) else 1
+    lows = [int(v) for v in size_classes]
+    if any(b <= a for a, b in zip(lows[:-1], lows[1:])):
+        raise ValueError(f"size_classes must increase, got {size_classes}")
+    highs = lows[1:] + [max(s_max, lows[-1]) + 1]
+    labels = [class_label(a, b) for a, b in zip(lows, lows[1:] + [None])]
+    by_class = dz_by_size(cl, np.array(lows + [highs[-1]]))
+    by_class = (pd.DataFrame({"size_lo": lows, "size_hi": highs, "label": labels})
+                .merge(by_class.drop(columns="size_hi"), on="size_lo", how="left"))
+    by_class["n"] = by_class["n"].fillna(0).astype(int)
+    dists = [dz_distribution(cl, a, b) for a, b in zip(lows, highs)]
+
+    bins = dz_by_size(cl, log_size_edges(s_max, bins_per_decade)) if len(cl) else \
+        pd.DataFrame(columns=["size_lo", "size_hi", "n", "dz_mean", "dz_min", "dz_std"])
+    bins = bins.astype({"size_lo": float, "size_hi": float})
+    bins["center"] = np.sqrt(bins["size_lo"] * (bins["size_hi"] - 1.0))
+    good = bins[bins["n"] >= min_samples]
+    cross = good[good["dz_mean"] >= DZ_GLOBAL - TOL]
+    last = good.iloc[-1] if len(good) else None
+    one = cl[cl["size"] == 1]["dz"]
+    numbers = {
+        "classes": {r.label: {"n": int(r.n), "dz_mean": r.dz_mean, "dz_min": r.dz_min,
+                              "dz_std": r.dz_std} for r in by_class.itertuples()},
+        "dz_global": DZ_GLOBAL, "dz_single_grain": DZ_SINGLE_GRAIN,
+        "n_clusters": int(len(cl)), "quiet_only": bool(quiet_only),
+        "frac_below_single_grain": (float(np.mean(cl["dz"] < DZ_SINGLE_GRAIN - TOL))
+                                    if len(cl) else np.nan),
+        "frac_single_on_bound": (float(np.mean(np.abs(one - DZ_SINGLE_GRAIN) <= TOL))
+                                 if len(one) else np.nan),
+        "slope_per_decade": _slope(np.log10(good["center"].to_numpy(float)), good["dz_mean"]),
+        "s_cross": float(cross["size_lo"].iloc[0]) if len(cross) else np.nan,
+        "largest_bin": ({"size_lo": int(last["size_lo"]), "n": int(last["n"]),
+                         "dz_mean": float(last["dz_mean"]), "dz_min": float(last["dz_min"])}
+                        if last is not None else None),
+    }
+    data = {"classes": by_class, "distributions": dists, "bins": bins,
+            "min_samples": int(min_samples)}
+    return numbers, data
+
+
+def plot(data: dict, numbers: dict):
+    """Top: delta z distributions per size class (shifted); bottom: <delta z>, min delta z vs size."""
+    fig, (ax, bx) = style.figure(2, 1, height=4.6, gridspec_kw={"height_ratios": [1.2, 1]})
+    classes = data["classes"]
+    dists = data["distributions"]
+    peak = max([float(d["density"].max()) for d in dists if len(d)] + [1.0])
+    shift = 0.6 * peak
+    for i, (row, d) in enumerate(zip(classes.itertuples(), dists)):
+        color = style.CYCLE[i % len(style.CYCLE)]
+        marker = style.MARKERS[i % len(style.MARKERS)]
+        off = i * shift
+        ax.axhline(off, color=color, lw=0.4, alpha=0.5)
+        if len(d):
+            mfc = color if marker not in ("+", "x") else None
+            ax.plot(d["center"], d["density"] + off, color=color, lw=0.7, marker=marker,
+                    ms=2.5, mfc=mfc, label=f"$s$ = {row.label} ({row.n})")
+        else:
+            ax.plot([], [], color=color, marker=marker, label=f"$s$ = {row.label}: none")
+    ax.axvline(DZ_GLOBAL, color=style.COLORS["quiet"], ls="-.", lw=0.9)
+    ax.axvline(DZ_SINGLE_GRAIN, color=style.CYCLE[1], ls="--", lw=0.9)
+    ax.set_xlabel(r"$\delta z = z - 3 - n_m$")
+    ax.set_ylabel(r"$P(\delta z)$ (shifted)")
+    ax.set_yticks([])
+    ax.legend(loc="upper left", fontsize=6, handlelength=1.5)
+    style.panel_label(ax, "a", x=0.97)
+    ax.texts[-1].set_ha("right")
+
+    b = data["bins"]
+    if len(b):
+        sem = b["dz_std"] / np.sqrt(b["n"])
+        bx.errorbar(b["center"], b["dz_mean"], yerr=sem, fmt="s", ms=3, lw=0.7,
+                    color=style.COLORS["quiet"], label=r"$\langle \delta z \rangle$")
+        bx.plot(b["center"], b["dz_min"], "o", ms=3, color=style.CYCLE[1],
+                label=r"min $\delta z$")
+        bx.set_xscale("log")
+    bx.axhline(DZ_GLOBAL, color=style.COLORS["quiet"], ls="-.", lw=0.9,
+               label="global (generalized isostaticity)")
+    bx.axhline(DZ_SINGLE_GRAIN, color=style.CYCLE[1], ls="--", lw=0.9, label="single grain")
+    bx.set_xlabel(r"cluster size $s$")
+    bx.set_ylabel(r"$\delta z$")
+    bx.legend(loc="lower right", fontsize=6)
+    style.panel_label(bx, "b")
+    fig.tight_layout(h_pad=0.6)
+    return fig

@@ -1,0 +1,154 @@
+"""One look for every figure: single-column size, a colour-blind-safe palette, saving.
+
+Palette: Okabe & Ito, "Color Universal Design" (2008), safe for the common colour-vision
+deficiencies. Semantic names keep the figures consistent with each other and with the paper's
+captions (quiet periods black, avalanching periods red-orange, critical contacts green, failing
+grains red in a cluster and blue outside).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import os
+from pathlib import Path
+
+import numpy as np
+
+OKABE_ITO = {
+    "black": "#000000", "orange": "#E69F00", "skyblue": "#56B4E9", "green": "#009E73",
+    "yellow": "#F0E442", "blue": "#0072B2", "vermillion": "#D55E00", "purple": "#CC79A7",
+}
+COLORS = {
+    "quiet": OKABE_ITO["black"],
+    "avalanche": OKABE_ITO["vermillion"],
+    "avalanche_shade": OKABE_ITO["orange"],
+    "marginal": OKABE_ITO["blue"],
+    "hypothesis": OKABE_ITO["skyblue"],
+    "cluster": "#404040",
+    "grain": "#D9D9D9",
+    "fixed": "#8C8C8C",
+    "critical_contact": OKABE_ITO["green"],
+    "fail_in_cluster": OKABE_ITO["vermillion"],
+    "fail_outside": OKABE_ITO["blue"],
+    "gravity": OKABE_ITO["vermillion"],
+    "fit": OKABE_ITO["black"],
+    "guide": "#7F7F7F",
+}
+# several curves (P(s) windows, cluster sizes): distinct and colour-blind safe, in this order
+CYCLE = [OKABE_ITO[k] for k in ("green", "blue", "vermillion", "black", "purple", "orange", "skyblue")]
+MARKERS = ["+", "^", "s", "o", "D", "v", "x"]
+
+SINGLE_COLUMN_IN = 3.4   # PRL single column width (inches)
+DOUBLE_COLUMN_IN = 7.0
+
+RC = {
+    "figure.dpi": 100, "savefig.dpi": 300, "savefig.bbox": "tight", "savefig.pad_inches": 0.02,
+    "font.size": 8, "axes.labelsize": 8, "axes.titlesize": 8, "legend.fontsize": 6.5,
+    "xtick.labelsize": 7, "ytick.labelsize": 7, "axes.linewidth": 0.6,
+    "lines.linewidth": 1.0, "lines.markersize": 3.5, "legend.frameon": False,
+    "xtick.direction": "in", "ytick.direction": "in", "xtick.top": True, "ytick.right": True,
+    "mathtext.fontset": "dejavusans", "image.cmap": "viridis",
+    "svg.hashsalt": "tiltpile", "pdf.fonttype": 42,
+}
+
+
+def use() -> None:
+    """Apply the style (Agg backend outside notebooks, the rcParams above, the colour cycle)."""
+    import matplotlib
+    if "ipykernel" not in os.environ.get("MPLBACKEND", "") and matplotlib.get_backend().lower() == "":
+        matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from cycler import cycler
+    plt.rcParams.update(RC)
+    plt.rcParams["axes.prop_cycle"] = cycler(color=CYCLE)
+
+
+def figure(nrows: int = 1, ncols: int = 1, height: float | None = None, width: float = SINGLE_COLUMN_IN,
+           **kw):
+    """``plt.subplots`` at single-column width (height default: golden ratio per row)."""
+    import matplotlib.pyplot as plt
+    use()
+    if height is None:
+        height = width / ncols * 0.75 * nrows
+    return plt.subplots(nrows, ncols, figsize=(width, height), **kw)
+
+
+def panel_label(ax, text: str, x: float = 0.02, y: float = 0.96) -> None:
+    """An italic panel letter (a, b, ...) in the top-left corner, as in the paper."""
+    ax.text(x, y, text, transform=ax.transAxes, ha="left", va="top", fontstyle="italic",
+            fontweight="bold")
+
+
+def draw_pile(ax, position, radius, facecolor, edgecolor="none", box_length: float | None = None,
+              theta_deg: float | None = None, linewidth: float = 0.0) -> None:
+    """Disks as circles in data units (x right, y up); gravity arrow when ``theta_deg`` is given.
+
+    position (N, 2), radius (N,), facecolor a colour or (N,) list of colours.
+    """
+    from matplotlib.collections import EllipseCollection
+    position = np.asarray(position, float)
+    d = 2.0 * np.asarray(radius, float)
+    ax.add_collection(EllipseCollection(d, d, np.zeros_like(d), units="xy", offsets=position,
+                                        offset_transform=ax.transData, facecolors=facecolor,
+                                        edgecolors=edgecolor, linewidths=linewidth))
+    if box_length is None:
+        ax.set_xlim(position[:, 0].min() - d.max(), position[:, 0].max() + d.max())
+    else:
+        ax.set_xlim(0.0, box_length)
+    ax.set_ylim(position[:, 1].min() - d.max(), position[:, 1].max() + d.max())
+    ax.set_aspect("equal")
+    ax.set_xticks([])
+    ax.set_yticks([])
+    if theta_deg is not None:
+        draw_gravity(ax, theta_deg)
+
+
+def draw_gravity(ax, theta_deg: float, where=(0.9, 0.85), length: float = 0.12) -> None:
+    """Arrow along gravity, rotated by theta from the -y axis towards +x (the pile's frame)."""
+    t = math.radians(theta_deg)
+    g = np.array([math.sin(t), -math.cos(t)]) * length   # box frame: g = (sin, -cos), sim.scene
+    x, y = where
+    ax.annotate("", xy=(x + g[0] / 2, y + g[1] / 2), xytext=(x - g[0] / 2, y - g[1] / 2),
+                xycoords="axes fraction", textcoords="axes fraction",
+                arrowprops=dict(arrowstyle="-|>", color=COLORS["gravity"], lw=1.2))
+    ax.text(x + 0.04, y, "g", transform=ax.transAxes, color=COLORS["gravity"], ha="left",
+            va="center", fontstyle="italic")
+
+
+def _jsonable(x):
+    if isinstance(x, dict):
+        return {str(k): _jsonable(v) for k, v in x.items()}
+    if isinstance(x, (list, tuple)):
+        return [_jsonable(v) for v in x]
+    if isinstance(x, np.ndarray):
+        return [_jsonable(v) for v in x.tolist()]
+    if isinstance(x, (np.bool_, bool)):
+        return bool(x)
+    if isinstance(x, (np.integer,)):
+        return int(x)
+    if isinstance(x, (float, np.floating)):
+        x = float(x)
+        return x if math.isfinite(x) else None
+    return x
+
+
+def save(fig, name: str, numbers: dict, figures_dir, meta: dict | None = None) -> dict[str, Path]:
+    """Write ``figures_dir/name.pdf``, ``.png`` and ``.json`` (each to a temporary name, then renamed).
+
+    The JSON holds ``{"figure": name, **meta, "numbers": numbers}`` with numpy scalars and arrays
+    turned into plain numbers and lists, NaN and inf written as null. Returns the three paths.
+    """
+    out = Path(figures_dir)
+    out.mkdir(parents=True, exist_ok=True)
+    paths = {ext: out / f"{name}.{ext}" for ext in ("pdf", "png", "json")}
+    for ext in ("pdf", "png"):
+        tmp = paths[ext].with_name(f".{name}.tmp.{ext}")
+        kw = {"metadata": {"CreationDate": None}} if ext == "pdf" else {"metadata": {"Software": None}}
+        fig.savefig(tmp, format=ext, **kw)
+        os.replace(tmp, paths[ext])
+    doc = {"figure": name, **_jsonable(meta or {}), "numbers": _jsonable(numbers)}
+    tmp = paths["json"].with_name(f".{name}.tmp.json")
+    tmp.write_text(json.dumps(doc, indent=1, sort_keys=False) + "\n")
+    os.replace(tmp, paths["json"])
+    return paths

@@ -1,0 +1,310 @@
+"""Figs. 1-3: compute() on small synthetic ensembles with known answers (no run files)."""
+
+import warnings
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pandas as pd  # noqa: E402
+import pytest  # noqa: E402
+
+from tiltpile.analysis import CLUSTER_COLUMNS, resegment  # noqa: E402
+from tiltpile.figures import data, fig1, fig2, fig3  # noqa: E402
+
+QUIET_LOST = 0.001
+
+
+def _run(run, lost_fraction, dtheta=0.1):
+    """A per-frame table of one run from its lost fraction (segmented with the 2% cutoff)."""
+    lf = np.asarray(lost_fraction, float)
+    nf = lf.size
+    f = pd.DataFrame({"run": run, "frame": np.arange(nf), "theta_deg": dtheta * np.arange(nf),
+                      "lost_fraction": lf})
+    return resegment(f, cutoff=0.02)
+
+
+def _ensemble(frames, clusters=None, seeds=None):
+    frames = frames.reset_index(drop=True)
+    if clusters is None:
+        clusters = pd.DataFrame({c: pd.Series(dtype=float) for c in CLUSTER_COLUMNS})
+    seeds = sorted(frames["run"].unique().tolist()) if seeds is None else seeds
+    return data.Ensemble(Path("/nonexistent"), frames, clusters, {"scene": {"mu": 0.5}}, seeds,
+                         {"preset": "test", "analysis": {"cutoff": 0.02}})
+
+
+def _show(module, d, numbers):
+    fig = module.plot(d, numbers)
+    assert isinstance(fig, matplotlib.figure.Figure)
+    plt.close(fig)
+
+
+# ---------------------------------------------------------------------------------------------
+# Fig. 1
+
+
+def _fig1_frames():
+    # 20 frames, theta = 0.1 k; avalanche in frames 15-17 (onset 15, theta_m = 1.5), last frame
+    # without successor. Before the onset z = 3.3 and n_m = 0.41 + 0.25 (theta - theta_m), so
+    # delta z_gen = -0.11 - 0.25 t crosses zero at t = -0.44.
+    parts = []
+    for run in (1, 2):
+        lf = np.r_[[QUIET_LOST] * 15, 0.05, 0.08, 0.05, QUIET_LOST, np.nan]
+        f = _run(run, lf)
+        t = f["theta_to_onset"].to_numpy()
+        av = f["avalanching"].to_numpy()
+        pre = ~av & np.isfinite(t)
+        f["z"] = np.where(av, 3.1, 3.3)
+        f["n_m"] = np.where(av, 0.3, np.where(pre, 0.41 + 0.25 * np.nan_to_num(t), 0.0))
+        f["dz_gen"] = f["z"] - 3.0 - f["n_m"]
+        parts.append(f)
+    return pd.concat(parts, ignore_index=True)
+
+
+def test_fig1_numbers_on_a_linear_approach_to_the_line():
+    fr = _fig1_frames()
+    assert fr.loc[fr["onset"], "frame"].tolist() == [15, 15]
+    numbers, d = fig1.compute(_ensemble(fr), snapshot=False)
+    assert numbers["z_start"] == pytest.approx(3.3)
+    assert numbers["n_m_start"] == pytest.approx(0.41 - 0.25 * 1.5)
+    assert numbers["dz_gen_start"] == pytest.approx(0.3 - 0.035)
+    assert numbers["z_pre_onset"] == pytest.approx(3.3)
+    assert numbers["n_m_pre_onset"] == pytest.approx(0.41 - 0.025)
+    assert numbers["n_onsets"] == 2
+    assert numbers["z_avalanche"] == pytest.approx(3.1)
+    assert numbers["n_m_avalanche"] == pytest.approx(0.3)
+    assert numbers["path_crosses"] is True
+    assert numbers["path_crossing_theta_to_onset"] == pytest.approx(-0.44)
+    # quiet frames: 15 before the onset (4 of them, t >= -0.4, below the line) + 2 after
+    assert numbers["quiet_below_fraction"] == pytest.approx(4 / 17)
+    assert numbers["avalanche_below_fraction"] == 1.0
+    assert numbers["snapshot"] == {"seed": 1, "frame": 16, "theta_deg": pytest.approx(1.6)}
+    path = d["path"]
+    assert path["n_frames"].sum() == 30
+    assert np.all(np.diff(path["theta_to_onset"]) > 0)
+    _show(fig1, d, numbers)
+
+
+def test_fig1_path_that_stays_stable_and_one_that_starts_below():
+    fr = _fig1_frames()
+    fr.loc[~fr["avalanching"], "n_m"] = 0.1
+    fr["dz_gen"] = fr["z"] - 3.0 - fr["n_m"]
+    numbers, _ = fig1.compute(_ensemble(fr), snapshot=False)
+    assert numbers["path_crosses"] is False and np.isnan(numbers["path_crossing_theta_to_onset"])
+    assert numbers["path_min_dz_gen"] == pytest.approx(0.2)
+    assert numbers["quiet_below_fraction"] == 0.0
+    below = pd.DataFrame({"theta_to_onset": [-2.0, -1.0], "dz_gen": [-0.1, 0.2]})
+    assert fig1.path_crossing(below) == -2.0
+
+
+def test_fig1_empty_selection_gives_nan():
+    fr = _run(1, [QUIET_LOST] * 9 + [np.nan])      # no avalanche at all
+    fr["z"], fr["n_m"] = 3.3, 0.1
+    fr["dz_gen"] = 0.2
+    numbers, d = fig1.compute(_ensemble(fr), snapshot=False)
+    assert numbers["n_onsets"] == 0 and np.isnan(numbers["z_pre_onset"])
+    assert np.isnan(numbers["z_avalanche"]) and np.isnan(numbers["avalanche_below_fraction"])
+    assert numbers["path_n_windows"] == 0 and numbers["path_crosses"] is False
+    _show(fig1, d, numbers)
+
+
+# ---------------------------------------------------------------------------------------------
+# Fig. 2
+
+
+def _fig2_frames():
+    # 3 runs of 700 frames, theta = 0.01 k. Run 1: avalanche at frames 100-119 (theta_m = 1.0);
+    # run 2: precursor 0.015 at frame 149, avalanche 150-169 (theta_m = 1.5); run 3: none.
+    n = 700
+    parts = []
+    for run in (1, 2, 3):
+        lf = np.full(n, QUIET_LOST)
+        lf[::4] = 0.0
+        if run == 1:
+            lf[100:120] = 0.05
+        if run == 2:
+            lf[149] = 0.015
+            lf[150:170] = 0.05
+        lf[-1] = np.nan
+        parts.append(_run(run, lf, dtheta=0.01))
+    fr = pd.concat(parts, ignore_index=True)
+    av = fr["avalanching"].to_numpy()
+    # kinetic energy: uniform in log10 over [1e-8, 1e-4) when quiet (density ~ 1/E), a bump at
+    # [10^-2.5, 10^-2] when avalanching
+    ke = np.empty(len(fr))
+    ke[~av] = 10 ** np.linspace(-8, -4, (~av).sum(), endpoint=False)
+    ke[av] = 10 ** np.linspace(-2.5, -2, av.sum())
+    fr["ke_trans"] = ke
+    fr["z"] = np.where(av, 3.0, 3.3)
+    nm = np.where(av, 0.3, 0.1)
+    nm[(fr["run"] == 3).to_numpy() & (fr["frame"] < 10).to_numpy()] = 0.5
+    fr["n_m"] = nm
+    fr["dz_gen"] = fr["z"] - 3.0 - fr["n_m"]
+    return fr
+
+
+def test_fig2_numbers_on_known_onsets_and_energies():
+    fr = _fig2_frames()
+    numbers, d = fig2.compute(_ensemble(fr))
+    assert numbers["cutoff"] == 0.02
+    th = numbers["theta_m_per_run"]
+    assert th[:2] == pytest.approx([1.0, 1.5]) and np.isnan(th[2])
+    assert numbers["theta_m_mean"] == pytest.approx(1.25)
+    assert numbers["theta_m_std"] == pytest.approx(0.5 / np.sqrt(2))
+    assert (numbers["theta_m_min"], numbers["theta_m_max"]) == pytest.approx((1.0, 1.5))
+    assert numbers["n_runs_with_onset"] == 2 and numbers["n_onsets"] == 2
+    assert numbers["avalanching_fraction"] == pytest.approx(40 / 2100)
+    assert numbers["z_quiet_mean"] == pytest.approx(3.3)
+    assert numbers["n_m_quiet_mean"] == pytest.approx((2050 * 0.1 + 10 * 0.5) / 2060)
+    assert numbers["quiet_below_fraction"] == pytest.approx(10 / 2060)
+    # the quiet power law E^-1 ends at 1e-4, where the density drops to nothing
+    assert numbers["ke_slope"] == pytest.approx(-1.0, abs=0.03)
+    assert numbers["ke_threshold"] == pytest.approx(1e-4, rel=1e-9)
+    assert numbers["ke_threshold_avalanching_above"] == 1.0
+    assert numbers["ke_threshold_quiet_above"] == 0.0
+    finite = np.isfinite(fr["lost_fraction"])
+    assert numbers["lost_zero_fraction"] == pytest.approx(
+        (fr.loc[finite, "lost_fraction"] == 0).sum() / finite.sum())
+    # the 1% cutoff moves run 2's onset one frame earlier, the others move nothing
+    assert numbers["onset_shift_max_frames"] == 1.0
+    assert numbers["onset_shift_max_frames_by_cutoff"] == {"0.01": 1.0, "0.02": 0.0, "0.03": 0.0,
+                                                           "0.04": 0.0}
+    assert numbers["onset_shift_max_deg"] == pytest.approx(0.01)
+    assert numbers["first_onset_shift_max_frames"] == 1.0
+    assert numbers["onset_unmatched_fraction"] == 0.0
+    assert numbers["onset_cutoffs_unresolved"] == []
+    assert numbers["sample_seed"] == 1 and len(d["sample"]) == 700
+    _show(fig2, d, numbers)
+
+
+def test_fig2_reports_cutoffs_the_frame_spacing_does_not_resolve():
+    # quiet frames losing 0.8% per frame: the 1% cutoff does not separate them (median > 1/2 of
+    # it); reported in the numbers, no warning escapes
+    lf = np.r_[[0.008] * 50, [0.05] * 5, [0.008] * 10, np.nan]
+    fr = _run(1, lf)
+    fr["ke_trans"] = 10 ** np.linspace(-8, -3, len(fr))
+    fr["z"], fr["n_m"], fr["dz_gen"] = 3.3, 0.1, 0.2
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        numbers, d = fig2.compute(_ensemble(fr))
+    assert numbers["onset_cutoffs_unresolved"] == [0.01]
+    assert numbers["onset_shift_max_frames_by_cutoff"]["0.02"] == 0.0
+
+
+def test_power_law_departure_needs_consecutive_bins():
+    x = 10.0 ** (np.arange(20) / 5 + 0.1)
+    dens = pd.DataFrame({"left": x / 10 ** 0.1, "right": x * 10 ** 0.1, "center": x,
+                         "count": np.full(20, 100), "density": 1.0 / x})
+    dens.loc[12, "density"] /= 10          # a single outlier: not a departure
+    dens.loc[15:, "density"] /= 10         # from bin 15 on: departure
+    dep = fig2.power_law_departure(dens, x[0], x[8], factor=2.0, n_consecutive=2)
+    assert dep["slope"] == pytest.approx(-1.0) and dep["n_fit_bins"] == 9
+    assert dep["threshold"] == pytest.approx(dens.loc[15, "left"])
+    assert np.isnan(fig2.power_law_departure(dens, x[0], x[0])["threshold"])   # one bin: no fit
+
+
+# ---------------------------------------------------------------------------------------------
+# Fig. 3
+
+
+def _fig3_ensemble():
+    # one quiet run of 41 frames (the last without successor: counts -1, lost fraction NaN);
+    # the largest cluster peaks at 20 (else 5) at frames 5, 15, 25, 35, when N^f doubles
+    n = 41
+    fr = _run(1, np.r_[[QUIET_LOST] * (n - 1), np.nan])
+    peak = np.isin(np.arange(n), [5, 15, 25, 35])
+    fr["largest_cluster"] = np.where(peak, 20, 5)
+    fr["n_lost"] = np.where(peak, 4, 2)
+    fr["n_failing"] = np.where(peak, 20, 10)
+    cf = np.array([0.1, 0.2, 0.3, 0.4])[np.arange(n) % 4]
+    fr["cluster_fraction"] = cf
+    fr["n_failing_in_cluster"] = np.round(fr["n_failing"] * (cf + 0.2)).astype(int)
+    for c in ("n_lost", "n_failing", "n_failing_in_cluster"):
+        fr.loc[n - 1, c] = -1
+    cl = pd.DataFrame({"run": 1, "frame": [0, 1, 2, 3, 4], "size": [6, 10, 2, 8, 7],
+                       "orientation_deg": [50.0, 70.0, 10.0, 20.0, np.nan],
+                       "avalanching": [False, False, False, True, False]})
+    cl = cl.reindex(columns=CLUSTER_COLUMNS)
+    return _ensemble(fr, cl)
+
+
+def test_fig3_numbers_on_a_synthetic_run():
+    ens = _fig3_ensemble()
+    numbers, d = fig3.compute(ens, snapshot=False)
+    # without onset the snapshot is the last quiet frame
+    assert numbers["snapshot"]["seed"] == 1 and numbers["snapshot"]["frame"] == 40
+    # failing-in-cluster fraction = cluster fraction + 0.2 in every frame
+    assert numbers["failing_in_cluster_excess"] == pytest.approx(0.2)
+    assert numbers["failing_in_cluster_excess_binned"] == pytest.approx(0.2)
+    # sum N^f N_c/N: 36 ordinary frames (cluster fractions 0.1 x 10, 0.2 x 8, 0.3 x 10, 0.4 x 8,
+    # N^f = 10) and the 4 peaks (0.2, 0.4, 0.2, 0.4, N^f = 20)
+    assert numbers["failing_in_cluster_expected"] == pytest.approx((10 * 8.8 + 20 * 1.2) / 440)
+    assert numbers["n_failing_grains"] == 10 * 36 + 20 * 4       # last frame (-1) left out
+    bins = d["fraction_bins"]
+    assert bins["x"].to_numpy() == pytest.approx([0.1, 0.2, 0.3, 0.4])
+    assert bins["excess"].to_numpy() == pytest.approx([0.2] * 4)
+    # N^f is a linear function of S_m: C(0) = 1 (the -1 of the last frame must not enter)
+    assert numbers["failure_column"] == "n_lost"
+    assert numbers["C_tau0"] == pytest.approx(1.0)
+    assert numbers["C_max"] == pytest.approx(1.0) and numbers["C_argmax_tau"] == 0
+    assert numbers["C_tau0_alt"] == pytest.approx(1.0)
+    # failure just after the 4 peaks: 4 lost contacts against a quiet mean of 88 / 40
+    assert numbers["enhancement_tau0"] == pytest.approx(4 / 2.2 - 1)
+    assert numbers["enhancement_max"] == pytest.approx(4 / 2.2 - 1)
+    assert numbers["enhancement_argmax_tau"] == 0 and numbers["n_peaks"] == 4
+    # orientation: quiet clusters of size >= 5 with a defined axis: 50 and 70 degrees
+    assert numbers["orientation_mean_deg"] == pytest.approx(60.0)
+    assert numbers["orientation_median_deg"] == pytest.approx(60.0)
+    assert numbers["n_clusters_orientation"] == 2
+    assert numbers["orientation_mean_avalanche_deg"] == pytest.approx(20.0)
+    assert numbers["n_clusters_orientation_avalanche"] == 1
+    _show(fig3, d, numbers)
+
+
+def test_fig3_no_failure_no_clusters_gives_nan():
+    ens = _fig3_ensemble()
+    f = ens.frames
+    f["n_failing"] = np.where(f["n_failing"] >= 0, 0, -1)
+    f["n_failing_in_cluster"] = np.where(f["n_failing"] >= 0, 0, -1)
+    ens.clusters = ens.clusters.iloc[:0]
+    numbers, d = fig3.compute(ens, failure_column="n_failing", snapshot=False)
+    assert np.isnan(numbers["failing_in_cluster_excess"]) and len(d["fraction_bins"]) == 0
+    assert np.isnan(numbers["C_tau0"])                       # constant N^f
+    assert np.isnan(numbers["orientation_mean_deg"]) and numbers["n_clusters_orientation"] == 0
+    _show(fig3, d, numbers)
+
+
+def test_frame_before_onset():
+    lf = np.r_[[QUIET_LOST] * 20, 0.05, 0.05, [QUIET_LOST] * 5, np.nan]
+    fr = _run(7, lf)                                         # onset at frame 20, theta 2.0
+    assert fig3.frame_before_onset(fr, 7, 0.3) == 17
+    assert fig3.frame_before_onset(fr, 7, 5.0) == 0          # clipped to the first frame
+
+
+def test_snapshot_layers_categories_and_segments():
+    position = np.array([[1.0, 2.0], [2.0, 2.0], [3.0, 2.0], [4.0, 0.5], [1.0, 1.0], [2.0, 1.0]])
+    snap = {
+        "position": position, "radius": np.full(6, 0.5),
+        "fixed": np.array([False, False, False, False, True, True]),
+        # 0-1 sliding, 1-2 and 2-3 sticking, 3-floor sliding, 0-4 sticking (4 fixed),
+        # 4-5 sliding between two fixed grains (dropped)
+        "pair": np.array([[0, 1], [1, 2], [2, 3], [3, -1], [0, 4], [4, 5]]),
+        "force": np.array([[1, 0.5], [1, 0.1], [1, 0.1], [1, 0.5], [1, 0.1], [1, 0.5]]),
+        "status": np.array([2, 1, 1, 2, 1, 2]),
+        "theta_deg": 20.0, "box_length": 6.0,
+        # next frame: 1-2 and 0-4 are gone
+        "next": (np.array([[0, 1], [2, 3], [3, -1]]), np.ones((3, 2)), np.ones(3)),
+    }
+    lay = fig3.snapshot_layers(snap)
+    assert lay["category"].tolist() == [fig3.FAIL_IN_CLUSTER, fig3.FAIL_IN_CLUSTER,
+                                        fig3.FAIL_OUTSIDE, fig3.CLUSTER, fig3.FIXED, fig3.FIXED]
+    assert (lay["n_clusters"], lay["n_in_clusters"]) == (2, 3)
+    assert (lay["n_failing"], lay["n_failing_in_cluster"]) == (3, 2)
+    assert lay["n_critical_contacts"] == 2
+    assert lay["segments"].tolist() == [[[1.0, 2.0], [2.0, 2.0]], [[4.0, 0.5], [4.0, 0.0]]]
+    fig, ax = plt.subplots()
+    fig3.draw_snapshot(ax, lay)
+    plt.close(fig)
