@@ -37,11 +37,14 @@ variants = {
 }
 print("contacts", C)
 res = {k: [] for k in variants}
+cpu = {k: [] for k in variants}
 for r in range(reps):
     for name, (mode, w, fn) in variants.items():
         c = s.c.copy(); vel = s.vel.copy(); stt = s.status.copy(); rng = s.rng.copy()
-        t0 = time.perf_counter()
+        t0 = time.perf_counter(); c0 = time.thread_time()
         fn(s.ci, s.cj, c, stt, vel, 0.0, sweeps, mode, rng, np.empty(C, np.int64), w)
+        cpu[name].append(1e9 * (time.thread_time() - c0) / (sweeps * C))
         res[name].append(1e9 * (time.perf_counter() - t0) / (sweeps * C))
 for name, v in res.items():
-    print(f"{name:16s} median {np.median(v[1:]):6.2f} ns/update  (all: {' '.join(f'{x:.1f}' for x in v)})")
+    print(f"{name:16s} median {np.median(v[1:]):6.2f} ns/update wall, {np.median(cpu[name][1:]):6.2f} cpu "
+          f"(wall: {' '.join(f'{x:.1f}' for x in v)})")
