@@ -68,7 +68,7 @@ class SolverConfig:
     sweep: str = _f("forward", choices=("alternating", "random", "forward"),
                     doc="contact order of the NLGS sweeps")
     # Projected SOR (sim/solver.py). Measured on the settled bench piles while tilting at tol
-    # 1e-6 (tools/solver_variants.py): forward sweeps (grains are numbered bottom-up) at relax 1.5
+    # 1e-6 (python -m tiltpile.perf.solver_variants): forward sweeps (grains are numbered bottom-up) at relax 1.5
     # take 2.6x (n=1000) / 1.4x (n=4000) fewer sweeps than plain random NLGS and 2.5-3.3x less
     # time per step, leaving 2.4-4x less unbalanced force per grain; relax >= 1.7 can stall
     # (sweeps oscillate, max_iter). The default stays 1 (plain NLGS, bit-identical to before):

@@ -2,7 +2,7 @@
 
 Every kernel in ``tiltpile.sim`` is compiled with ``JIT``. ``fastmath`` stays off: it lets LLVM
 reassociate sums, which changes results between builds and breaks bit-for-bit determinism across
-machines. Measured on the NLGS sweep (tools/solver_micro.py, 4000-grain bench pile, forward,
+machines. Measured on the NLGS sweep (python -m tiltpile.perf.solver_micro, 4000-grain bench pile, forward,
 CPU time per contact update, median of 5, machine shared): 21.9 ns without, 19.3 ns with
 fastmath={"contract"} (FMA only, reductions keep their order, deterministic on one machine but not
 across CPUs with and without FMA), 17.0 ns with fastmath=True: 1.13x and 1.29x, not enough to

@@ -32,7 +32,7 @@ Coulomb cone. omega = 1 is the plain NLGS (bit for bit). The first sweep of ever
 (a lone contact, e.g. a disk landing on the floor, is then solved exactly in one sweep instead of
 oscillating towards it by factors 1 - omega). In a pile the forces relax diffusively
 under Gauss-Seidel; omega > 1 shortens that. Measured on the settled bench piles while tilting at
-tol 1e-6 (tools/solver_variants.py): forward sweeps at omega 1.5 take 101 (n=1000) / 452 (n=4000)
+tol 1e-6 (python -m tiltpile.perf.solver_variants): forward sweeps at omega 1.5 take 101 (n=1000) / 452 (n=4000)
 sweeps per step against 261 / 623 for random plain NLGS, with 2.4-4x less unbalanced force per
 grain left; omega >= 1.7 can oscillate between sticking and sliding states and hit max_iter.
 
