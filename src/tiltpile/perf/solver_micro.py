@@ -1,6 +1,6 @@
 """Microbench of the NLGS sweep: ns per contact update at a fixed sweep count, all in one process.
 
-Usage: python python -m tiltpile.perf.solver_micro N SWEEPS REPEATS
+Usage: python -m tiltpile.perf.solver_micro N SWEEPS REPEATS
 State: the cached bench pile data/bench/pile_n{N}_s0_*.npz, tilted 20 steps. Also times the
 same kernel compiled with fastmath={"contract"} (FMA) and fastmath=True, which the project does
 not use (sim/jit.py).

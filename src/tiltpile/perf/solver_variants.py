@@ -1,6 +1,6 @@
 """Sweeps per step, cost and true error of NLGS variants on a settled bench pile while tilting.
 
-Usage: python python -m tiltpile.perf.solver_variants N STEPS [EVAL_EVERY] [variant ...]
+Usage: python -m tiltpile.perf.solver_variants N STEPS [EVAL_EVERY] [variant ...]
   variant = sweep:relax[:tol], e.g. random:1  forward:1.6  forward:1.6:3e-7
 All variants start from the same state (the cached bench pile of data/bench, tilted 20 steps with
 the plain forward sweep) and run STEPS steps of the tilt at 0.001 deg/step, in one process.
