@@ -2,7 +2,12 @@
 
 Every kernel in ``tiltpile.sim`` is compiled with ``JIT``. ``fastmath`` stays off: it lets LLVM
 reassociate sums, which changes results between builds and breaks bit-for-bit determinism across
-machines; ``cache=True`` keeps compiled kernels on disk (``NUMBA_CACHE_DIR`` or ``__pycache__``).
+machines. Measured on the NLGS sweep (python -m tiltpile.perf.solver_micro, 4000-grain bench pile, forward,
+CPU time per contact update, median of 5, machine shared): 21.9 ns without, 19.3 ns with
+fastmath={"contract"} (FMA only, reductions keep their order, deterministic on one machine but not
+across CPUs with and without FMA), 17.0 ns with fastmath=True: 1.13x and 1.29x, not enough to
+reach the 10 ns target of issue 6 and not worth run files that differ between machines.
+``cache=True`` keeps compiled kernels on disk (``NUMBA_CACHE_DIR`` or ``__pycache__``).
 The flags are recorded in every run file (``store``), so a result can always be traced to them.
 
 Stale caches. numba checks a cached kernel only against its *own* source file, but a kernel

@@ -25,9 +25,21 @@ Sweep orders (``mode``): 0 forward; 1 alternating forward/backward over contacts
 particle id (roughly bottom-up, then top-down: a symmetric Gauss-Seidel); 2 random order,
 reshuffled every sweep (Unger & Kertesz, PRE 67, 2003; Jean 1999), from a checkpointable RNG.
 
-Convergence: the relative L2 change of the impulses over one sweep,
-    r = sqrt(sum |p^k - p^(k-1)|^2 / sum |p^k|^2),
-stops when r <= tol (LMGC90's 'Quad' norm in spirit; tol 1e-4 is the usual setting, see
+Over-relaxation (``relax`` = omega in (0, 2), projected SOR): each local solve moves the impulse
+omega times the plain correction, p_n <- max(0, p_n - omega W_nn^-1 (u_n + b)), then
+p_t <- clip(p_t - omega W_tt^-1 u_t, +-mu p_n), i.e. the over-relaxed value projected onto the
+Coulomb cone. omega = 1 is the plain NLGS (bit for bit). The first sweep of every step is plain
+(a lone contact, e.g. a disk landing on the floor, is then solved exactly in one sweep instead of
+oscillating towards it by factors 1 - omega). In a pile the forces relax diffusively
+under Gauss-Seidel; omega > 1 shortens that. Measured on the settled bench piles while tilting at
+tol 1e-6 (python -m tiltpile.perf.solver_variants): forward sweeps at omega 1.5 take 101 (n=1000) / 452 (n=4000)
+sweeps per step against 261 / 623 for random plain NLGS, with 2.4-4x less unbalanced force per
+grain left; omega >= 1.7 can oscillate between sticking and sliding states and hit max_iter.
+
+Convergence: the relative L2 change of the impulses over one sweep, divided by omega,
+    r = sqrt(sum |p^k - p^(k-1)|^2 / sum |p^k|^2) / omega,
+(the change per sweep of an over-relaxed solve is omega times the plain local correction, so
+dividing by omega keeps r the size of the plain correction), stops when r <= tol (LMGC90's 'Quad' norm in spirit; tol 1e-4 is the usual setting, see
 Radjai & Richefeu, Mech. Mater. 41, 2009) or after ``max_iter`` sweeps. With no load at all
 (sum |p|^2 = 0) r = 0. A small r after a sweep is not a small error when forces relax
 diffusively; the creep and convergence tests measure that error directly.
@@ -70,7 +82,7 @@ def _push(vel, i, j, nx, ny, dpn, dpt):
 
 
 @njit
-def nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm):
+def nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm, relax=1.0):
     """Sweep until the relative impulse change is <= tol or ``max_iter`` sweeps.
 
     ``perm`` (C,) int64 is scratch for the random order. Returns (sweeps, residual).
@@ -92,6 +104,9 @@ def nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm):
         if mode == RANDOM:
             shuffle(rng_state, perm[:nc])
         backward = mode == ALTERNATING and it % 2 == 1
+        # the first sweep is plain: an isolated contact is solved exactly by it, and over-relaxing
+        # a contact whose local solve is already exact only makes it oscillate (x (1 - omega))
+        w = 1.0 if it == 0 else relax
         for k in range(nc):
             if mode == RANDOM:
                 a = perm[k]
@@ -110,13 +125,13 @@ def nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm):
             un = dvx * nx + dvy * ny
             ut = -dvx * ny + dvy * nx - (vel[i, 2] + vel[j, 2])
             # u without this contact's own impulse is u - W p; the local solution in closed form:
-            pn_new = pn - (un + c[a, 2]) * c[a, 4]
+            pn_new = pn - (un + c[a, 2]) * c[a, 4] * w
             if pn_new <= 0.0:
                 pn_new = 0.0
                 pt_new = 0.0
                 st = OPEN
             else:
-                pt_new = pt - ut * c[a, 5]
+                pt_new = pt - ut * c[a, 5] * w
                 lim = c[a, 3] * pn_new
                 st = STICK
                 if pt_new > lim:
@@ -135,7 +150,7 @@ def nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm):
             den += pn_new * pn_new + pt_new * pt_new
         it += 1
         if den > 0.0:
-            res = math.sqrt(num / den)
+            res = math.sqrt(num / den) / w
         else:
             res = 0.0 if num == 0.0 else np.inf
         if res <= tol:
@@ -147,3 +162,37 @@ def empty_contacts():
     """Zero-length contact arrays of the kernel dtypes."""
     return (np.empty(0, np.int32), np.empty(0, np.int32), np.empty(0, np.int64),
             np.empty((0, 8)), np.empty(0, np.int8))
+
+
+@njit
+def natural_residual(ci, cj, c, vel):
+    """The contact law's residual at the current impulses, independent of how they were found.
+
+    For every contact the exact local solution p_loc (plain, relax = 1) is computed from the
+    current velocities *without* applying it (a Jacobi pass); returns
+    sqrt(sum |p_loc - p|^2 / sum |p|^2), zero exactly when every contact satisfies Signorini and
+    Coulomb given all the others. Unlike the per-sweep change that stops ``nlgs`` it does not
+    depend on the sweep order or the relaxation factor, so it compares solvers at equal accuracy.
+    """
+    num = 0.0
+    den = 0.0
+    for a in range(ci.shape[0]):
+        i = ci[a]
+        j = cj[a]
+        nx = c[a, 0]
+        ny = c[a, 1]
+        pn = c[a, 6]
+        pt = c[a, 7]
+        dvx = vel[i, 0] - vel[j, 0]
+        dvy = vel[i, 1] - vel[j, 1]
+        un = dvx * nx + dvy * ny
+        ut = -dvx * ny + dvy * nx - (vel[i, 2] + vel[j, 2])
+        pn_new = max(0.0, pn - (un + c[a, 2]) * c[a, 4])
+        lim = c[a, 3] * pn_new
+        pt_new = min(lim, max(-lim, pt - ut * c[a, 5]))
+        num += (pn_new - pn) ** 2 + (pt_new - pt) ** 2
+        den += pn * pn + pt * pt
+    if den > 0.0:
+        return math.sqrt(num / den)
+    return 0.0 if num == 0.0 else np.inf
+
