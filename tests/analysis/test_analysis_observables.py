@@ -161,3 +161,23 @@ def test_empty_directory_is_an_error(tmp_path):
         load_observables(tmp_path)
     with pytest.raises(FileNotFoundError, match="does not exist"):
         compute_observables(tmp_path / "nope")
+
+
+def test_lost_gap_counts_only_contacts_that_open():
+    # three grains in a row, touching: contacts (0,1) and (1,2) carry force at frame k. At k + 1
+    # both carry no force; grain 2 has moved away by 0.01 d, grain 1 has not moved (its contact
+    # with 0 only shed its load, as a hyperstatic rigid pile can without any motion).
+    radius = np.full(3, 0.5)
+    fixed = np.zeros(3, bool)
+    pos_k = np.array([[1.0, 1.0], [2.0, 1.0], [3.0, 1.0]])
+    pos_k1 = pos_k + np.array([[0.0, 0.0], [0.0, 0.0], [0.01, 0.0]])
+    pair = np.array([[0, 1], [1, 2]], np.int32)
+    prev = {"pair": pair, "active": np.array([True, True]), "labels": np.full(3, -1), "position": pos_k}
+    cur = {"pair": pair, "active": np.array([False, False]), "labels": np.full(3, -1), "position": pos_k1}
+    by_force = ob.failure_between(prev, cur, fixed)
+    assert by_force["n_lost"] == 2 and by_force["lost_fraction"] == 1.0
+    by_gap = ob.failure_between(prev, cur, fixed, radius, 10.0, lost_gap=1e-3)
+    assert by_gap["n_lost"] == 1 and by_gap["lost_fraction"] == 0.5 and by_gap["n_failing"] == 2
+    assert ob.failure_between(prev, cur, fixed, radius, 10.0, lost_gap=0.02)["n_lost"] == 0
+    with pytest.raises(ValueError, match="lost_gap"):
+        ob._params({"lost_gap": -1.0})

@@ -63,6 +63,8 @@ DEFAULT_PARAMS = {
     "ray_spacing": 0.1,      # top-layer ray spacing (d)
     "touch_tol": 0.05,       # bottom-layer touching tolerance (d)
     "merge_gap": 0,          # avalanche merging of short quiet gaps (frames)
+    "lost_gap": None,        # None: a contact is lost when its f_n drops to 0 (force definition);
+                             # a gap g (d): only if it has also opened by more than g (geometric)
 }
 
 FRAME_COLUMNS = [
@@ -92,6 +94,8 @@ def _params(overrides: dict) -> dict:
         raise ValueError(f"cluster_region must be 'mobile' or 'bulk', got {p['cluster_region']!r}")
     if not 0.0 < p["cutoff"] < 1.0:
         raise ValueError(f"cutoff must be in (0, 1), got {p['cutoff']}")
+    if p["lost_gap"] is not None and not p["lost_gap"] >= 0.0:
+        raise ValueError(f"lost_gap must be None or >= 0 (d), got {p['lost_gap']}")
     return p
 
 
@@ -165,18 +169,26 @@ def frame_observables(radius, fixed, box_length, position, velocity, omega, pair
         "n_clusters": int(sizes.size), "n_in_clusters": int(sizes.sum()),
         "cluster_fraction": float(sizes.sum() / nmob) if nmob else np.nan,
     }
-    return row, ctab, {"pair": pair, "active": active, "labels": labels}
+    return row, ctab, {"pair": pair, "active": active, "labels": labels, "position": position}
 
 
-def failure_between(prev: dict, cur: dict, fixed: np.ndarray) -> dict:
+def failure_between(prev: dict, cur: dict, fixed: np.ndarray, radius=None, box_length=None,
+                    lost_gap: float | None = None) -> dict:
     """Lost contacts and failing grains from frame k (``prev``) to k + 1 (``cur``).
 
-    prev, cur: the ``keep`` dicts of :func:`frame_observables`. Returns dict n_lost,
-    lost_fraction (n_lost / active contacts at k), n_failing, n_failing_in_cluster (failing
-    grains that were in a cluster at frame k), failing_in_cluster_fraction.
+    prev, cur: the ``keep`` dicts of :func:`frame_observables`. A contact active at k is lost
+    when it is not active at k + 1 (force definition); with ``lost_gap`` (d; needs ``radius`` and
+    ``box_length``) it must also have opened: its surface gap at k + 1 exceeds lost_gap (geometric
+    definition; a rigid hyperstatic pile can shift its load off a contact that stays closed, which
+    the force definition counts as a loss). Returns dict n_lost, lost_fraction (n_lost / active
+    contacts at k), n_failing, n_failing_in_cluster (failing grains that were in a cluster at
+    frame k), failing_in_cluster_fraction.
     """
     n = fixed.size
     lost = _ct.lost_contacts(prev["pair"], prev["active"], cur["pair"], cur["active"], n)
+    if lost_gap is not None:
+        gap = _ct.contact_gaps(prev["pair"], cur["position"], radius, box_length)
+        lost = lost & (gap > lost_gap)
     failing = _ct.failing_grains(n, prev["pair"], lost, fixed)
     n_act = int(prev["active"].sum())
     nf = int(failing.sum())
@@ -191,7 +203,7 @@ def run_observables(run, run_id: int | None = None, **params) -> tuple[pd.DataFr
 
     run: path of a run file, or an open reader with the :func:`tiltpile.store.open_run` API.
     params: overrides of DEFAULT_PARAMS (cutoff, eps, link, cluster_region, min_contacts,
-    ray_spacing, touch_tol, merge_gap).
+    ray_spacing, touch_tol, merge_gap, lost_gap).
     """
     p = _params(params)
     if isinstance(run, (str, os.PathLike)):
@@ -220,7 +232,7 @@ def run_observables(run, run_id: int | None = None, **params) -> tuple[pd.DataFr
             cluster_region=p["cluster_region"], min_contacts=p["min_contacts"],
             ray_spacing=p["ray_spacing"], touch_tol=p["touch_tol"])
         if prev is not None:
-            rows[-1].update(failure_between(prev, keep, fixed))
+            rows[-1].update(failure_between(prev, keep, fixed, radius, L, p["lost_gap"]))
         row.update(n_lost=-1, lost_fraction=np.nan, n_failing=-1, n_failing_in_cluster=-1,
                    failing_in_cluster_fraction=np.nan)
         rows.append(row)
