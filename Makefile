@@ -56,8 +56,11 @@ figures: setup
 	done
 	$(PY) -m tiltpile report --figures $(FIGURES) --out $(REPORT)
 
+# `make bench`: the speed x accuracy chart (tiltpile.perfchart; ~15 min on one core): tolerance x
+# time-step sweep on the smoke pile, Pareto plot, scaling in N; CSV, PNG and summary.json in
+# figures/performance/. The single-pile timing stays available: `tiltpile bench --n 1000 --steps 200`.
 bench: setup
-	$(PY) -m tiltpile bench
+	$(PY) -m tiltpile bench --chart figures/performance
 
 clean-data:
 	rm -rf data/

@@ -10,6 +10,9 @@ Reported: ``contacts`` (candidate contacts swept by the NLGS), ``active_contacts
 ``mean_iterations`` (NLGS sweeps per step), ``ms_per_step`` (wall time of a whole step) and
 ``ns_per_contact_update`` (wall time / (contacts x sweeps): the cost of one local solve,
 everything else in the step amortised into it). This is a measurement, not a test.
+
+``tiltpile bench --chart DIR`` (``make bench``) measures the speed x accuracy chart instead
+(tolerance and time-step sweep, Pareto plot, scaling in N): :mod:`tiltpile.perfchart`.
 """
 
 from __future__ import annotations
@@ -33,10 +36,11 @@ def bench_config(n: int, preset: str = "paper", config_file=None, overrides=()) 
     return cfgmod.load(preset, config_file, [*overrides, f"scene.n={n}", f"scene.box_length={length}"])
 
 
-def settled_pile(cfg: cfgmod.Config, seed: int, progress: bool = True):
-    """A deposited pile for ``cfg``: from the cache, or deposited now and cached."""
-    CACHE.mkdir(parents=True, exist_ok=True)
-    path = CACHE / f"pile_n{cfg.scene.n}_s{seed}_{cfg.hash()[:12]}.npz"
+def settled_pile(cfg: cfgmod.Config, seed: int, progress: bool = True, cache: Path = CACHE):
+    """A deposited pile for ``cfg``: from the cache directory, or deposited now and cached."""
+    cache = Path(cache)
+    cache.mkdir(parents=True, exist_ok=True)
+    path = cache / f"pile_n{cfg.scene.n}_s{seed}_{cfg.hash()[:12]}.npz"
     if path.exists():
         sysm = protocol.make_system(cfg, seed)
         with np.load(path) as z:

@@ -1,0 +1,112 @@
+"""The speed x accuracy chart (``tiltpile bench --chart``) in its quick mode on a tiny pile.
+
+No timing assertions: only the files, their columns, and facts that must hold whatever the machine.
+"""
+
+from __future__ import annotations
+
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from tiltpile import cli
+from tiltpile.perfchart import (ACCURACY_COLUMNS, SCALING_COLUMNS, ChartSpec, grid_points,
+                                pareto_front, run_chart, tile)
+
+
+@pytest.fixture(scope="module")
+def chart(tmp_path_factory):
+    out = tmp_path_factory.mktemp("perf")
+    summary = run_chart(out, ChartSpec.quick_spec(), progress=False, command="test")
+    return out, summary
+
+
+def test_files_written(chart):
+    out, summary = chart
+    for name in ("accuracy.csv", "scaling.csv", "pareto.png", "scaling.png", "summary.json"):
+        assert (out / name).stat().st_size > 0, name
+        assert name in summary["files"]
+    assert not list(out.glob(".*tmp*")), "temporary files left behind"
+    s = json.loads((out / "summary.json").read_text())
+    for key in ("cpu_count", "platform", "numba"):
+        assert key in s["machine"]
+    assert s["command"] == "test" and s["date"]
+    assert (out / "pareto.png").read_bytes()[:8] == b"\x89PNG\r\n\x1a\n"
+
+
+def test_accuracy_table(chart):
+    out, _ = chart
+    acc = pd.read_csv(out / "accuracy.csv")
+    assert list(acc.columns) == ACCURACY_COLUMNS
+    spec = ChartSpec.quick_spec()
+    assert len(acc) == len(spec.seeds) * len(grid_points(spec))
+    assert acc["is_reference"].sum() == len(spec.seeds)
+    assert acc["is_default"].sum() == len(spec.seeds)
+    ref = acc[acc["is_reference"]]
+    assert np.all(ref[["z_shift", "n_m_shift"]].to_numpy() == 0)
+    for dt, d in acc.groupby("dt"):
+        d = d.set_index("tol")
+        loose, tight = d.loc[1e-2], d.loc[1e-6]
+        # a tighter tolerance takes more sweeps and leaves a smaller residual ...
+        assert tight["sweeps_mean"] > loose["sweeps_mean"]
+        assert tight["residual_median"] < loose["residual_median"]
+        assert tight["residual_median"] <= 1e-6 * 1.0001 or tight["cap_hit_fraction"] > 0
+        # ... and the pile held at a fixed angle creeps less
+        assert loose["creep_mean"] > tight["creep_mean"]
+    assert np.all(acc["max_overlap"] >= 0) and np.all(acc["steps"] > 0)
+    assert np.all(acc["ms_per_deg"] > 0)
+
+
+def test_scaling_table(chart):
+    out, summary = chart
+    sc = pd.read_csv(out / "scaling.csv")
+    assert list(sc.columns) == SCALING_COLUMNS
+    spec = ChartSpec.quick_spec()
+    fwd = sc[(sc["sweep"] == "forward") & (sc["relax"] == 1.0)]
+    assert sorted(fwd["n"]) == [spec.base_n * k for k in spec.copies]
+    assert {("random", 1.0), ("forward", 1.5)} <= set(zip(sc["sweep"], sc["relax"]))
+    # contacts grow with the width of the pile, the box is k times wider
+    fwd = fwd.sort_values("n")
+    assert np.all(np.diff(fwd["contacts"]) > 0)
+    assert np.allclose(fwd["box_length"] / fwd["copies"], fwd["box_length"].iloc[0])
+    assert np.all(sc["ns_per_update"] > 0)
+    assert "loglog_slope" in summary["scaling_fit"]
+
+
+def test_tile_keeps_grains_and_ordering(chart):
+    from tiltpile import config
+    from tiltpile.sim import protocol
+
+    cfg = config.load("smoke", None, ["scene.n=20", "scene.box_length=6.0"])
+    s = protocol.make_system(cfg, 0)
+    t = tile(s, 3)
+    assert t.n == 3 * s.n and t.params["box_length"] == 3 * s.params["box_length"]
+    assert t.fixed.sum() == 3 * s.fixed.sum()
+    # copy m of grain i is grain 3 i + m, shifted by m L
+    assert np.allclose(t.pos[3 * 5 + 2], s.pos[5] + [2 * 6.0, 0.0])
+    assert np.all(t.pos[:, 0] < t.params["box_length"] + 1)
+
+
+def test_grid_points():
+    full = ChartSpec.full()
+    pts = grid_points(full)  # cross: every tol at dt 0.01, every dt at tol 1e-6
+    assert len(pts) == len(full.tols) + len(full.dts) - 1
+    assert (1e-6, 0.005) in pts and (1e-2, 0.01) in pts and (1e-2, 0.02) not in pts
+    from dataclasses import replace
+    assert len(grid_points(replace(full, grid="full"))) == len(full.tols) * len(full.dts)
+
+
+def test_pareto_front():
+    x = np.array([1.0, 2.0, 3.0, 0.5, np.nan])
+    y = np.array([5.0, 1.0, 0.5, 9.0, 0.1])
+    assert list(pareto_front(x, y)) == [3, 0, 1, 2]
+    assert list(pareto_front([1, 2], [1, 2])) == [0]
+
+
+def test_cli_rejects_single_pile_options_with_chart(tmp_path, capsys):
+    assert cli.main(["bench", "--chart", str(tmp_path), "--n", "100"]) == 2
+    assert "--n" in capsys.readouterr().err
+    assert cli.main(["bench", "--quick"]) == 2
+    assert not any(tmp_path.iterdir())
