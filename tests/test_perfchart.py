@@ -64,6 +64,12 @@ def test_scaling_table(chart):
     sc = pd.read_csv(out / "scaling.csv")
     assert list(sc.columns) == SCALING_COLUMNS
     spec = ChartSpec.quick_spec()
+    fixed = sc[sc["fixed_sweeps"] > 0]
+    # tol 0 never converges: every timed step makes exactly fixed_sweeps sweeps
+    assert sorted(fixed["n"]) == [spec.base_n * k for k in spec.copies]
+    assert np.all(fixed["sweeps_mean"] == spec.fixed_sweeps) and np.all(fixed["cap_hits"] == fixed["steps"])
+    assert summary["scaling_fit"]["fixed_sweeps"]["sweeps"] == spec.fixed_sweeps
+    sc = sc[sc["fixed_sweeps"] == 0]
     fwd = sc[(sc["sweep"] == "forward") & (sc["relax"] == 1.0)]
     assert sorted(fwd["n"]) == [spec.base_n * k for k in spec.copies]
     assert {("random", 1.0), ("forward", 1.5)} <= set(zip(sc["sweep"], sc["relax"]))

@@ -75,7 +75,7 @@ ACCURACY_COLUMNS = [
 SCALING_COLUMNS = [
     "n", "copies", "box_length", "sweep", "relax", "tol", "steps", "contacts", "active_contacts",
     "ms_per_step", "ms_per_step_mean", "ns_per_update", "sweeps_mean", "sweeps_median", "cap_hits",
-    "settle_s",
+    "settle_s", "fixed_sweeps",
 ]
 
 
@@ -108,6 +108,8 @@ class ChartSpec:
     scaling_steps_large: int = 50   # for n > 4000
     variant_ns: tuple = (1000, 4000)
     variant_steps: int = 50
+    fixed_sweeps: int = 100         # scaling at a fixed number of sweeps per step (tol 0)
+    fixed_steps: int = 10
     cache: str | None = "data/bench"
     quick: bool = False
 
@@ -122,6 +124,7 @@ class ChartSpec:
                    hold_deg=5.0, creep_tilt_steps=500, creep_settle_time=2.0, creep_hold_time=2.0,
                    base_n=60, copies=(1, 2), tile_settle_steps=50, scaling_steps=10,
                    scaling_steps_large=10, variant_ns=(120,), variant_steps=10, cache=None,
+                   fixed_sweeps=20, fixed_steps=3,
                    grid="full", quick=True)
 
 
@@ -394,17 +397,41 @@ def scaling_sweep(spec: ChartSpec, progress: bool = True) -> pd.DataFrame:
             if (sweep, relax) != ("forward", 1.0):
                 steps = min(steps, spec.variant_steps)
             r = dict(n=n, copies=k, box_length=s.params["box_length"], sweep=sweep, relax=relax,
-                     tol=spec.scaling_tol, settle_s=settle)
+                     tol=spec.scaling_tol, settle_s=settle, fixed_sweeps=0)
             r.update(_time_steps(s, steps, 20 * dth, dth))
             rows.append(r)
             _log(f"[scaling] n {n} {sweep} relax {relax:g}: {r['ms_per_step']:.1f} ms/step, "
                  f"{r['sweeps_mean']:.0f} sweeps/step, {r['ns_per_update']:.1f} ns/update, "
                  f"{r['contacts']} contacts", progress)
+        # the cost of a step at a fixed number of sweeps (tol 0: never converged, exactly
+        # fixed_sweeps sweeps): valid whether or not the tiled pile has settled, and the part of
+        # the cost per step that must be linear in N; sweeps per step are measured separately
+        s.restore(start)
+        s.params.update(mode=solver.FORWARD, relax=1.0, tol=0.0, max_iter=spec.fixed_sweeps)
+        r = dict(n=n, copies=k, box_length=s.params["box_length"], sweep="forward", relax=1.0,
+                 tol=0.0, settle_s=settle, fixed_sweeps=spec.fixed_sweeps)
+        r.update(_time_steps(s, spec.fixed_steps, 20 * dth, dth))
+        s.params.update(tol=spec.scaling_tol, max_iter=cfg.solver.max_iter)
+        rows.append(r)
+        _log(f"[scaling] n {n} forward, {spec.fixed_sweeps} sweeps fixed: {r['ms_per_step']:.1f} ms/step, "
+             f"{r['ns_per_update']:.1f} ns/update", progress)
     return pd.DataFrame(rows)[SCALING_COLUMNS]
 
 
 def scaling_fit(df: pd.DataFrame) -> dict:
-    d = df[(df["sweep"] == "forward") & (df["relax"] == 1.0)].sort_values("n")
+    out = _linear_fit(df[(df["sweep"] == "forward") & (df["relax"] == 1.0) & (df["fixed_sweeps"] == 0)])
+    fixed = df[df["fixed_sweeps"] > 0].sort_values("n")
+    if len(fixed) >= 2:
+        f = _linear_fit(fixed)
+        out["fixed_sweeps"] = {k: f[k] for k in f if k in (
+            "n", "ms_per_step", "ms_per_grain_origin_fit", "loglog_slope",
+            "cost_per_grain_max_over_min_1000_up", "loglog_slope_1000_up", "ratio_to_line")}
+        out["fixed_sweeps"]["sweeps"] = int(fixed["fixed_sweeps"].iloc[0])
+    return out
+
+
+def _linear_fit(d: pd.DataFrame) -> dict:
+    d = d.sort_values("n")
     n = d["n"].to_numpy(float)
     ms = d["ms_per_step"].to_numpy(float)
     out = {"n": n.tolist(), "ms_per_step": ms.tolist()}
@@ -530,7 +557,17 @@ def plot_scaling(sc: pd.DataFrame, fit: dict, path: Path, tilt_per_step: float =
     styles = {("forward", 1.0): ("o-", "C0", "forward, relax 1 (default)"),
               ("random", 1.0): ("s", "C3", "random, relax 1 (plain NLGS)"),
               ("forward", 1.5): ("^", "C2", "forward, relax 1.5 (SOR)")}
-    for (sweep, relax), d in sc.groupby(["sweep", "relax"]):
+    fixed = sc[sc["fixed_sweeps"] > 0].sort_values("n")
+    if len(fixed):
+        lab = f"forward, exactly {int(fixed['fixed_sweeps'].iloc[0])} sweeps per step"
+        axes[0].plot(fixed["n"], fixed["ms_per_step"], "D-", color="C4", label=lab)
+        axes[1].plot(fixed["n"], fixed["ns_per_update"], "D-", color="C4", label=lab)
+        fx = fit.get("fixed_sweeps", {})
+        if "ms_per_grain_origin_fit" in fx:
+            nn = np.geomspace(sc["n"].min(), sc["n"].max(), 50)
+            axes[0].plot(nn, fx["ms_per_grain_origin_fit"] * nn, "--", color="C4", lw=1,
+                         label=f"linear (fixed sweeps): slope {fx['loglog_slope']:.2f} log-log")
+    for (sweep, relax), d in sc[sc["fixed_sweeps"] == 0].groupby(["sweep", "relax"]):
         d = d.sort_values("n")
         st, c, lab = styles.get((sweep, relax), ("x", "k", f"{sweep} {relax:g}"))
         axes[0].plot(d["n"], d["ms_per_step"], st, color=c, label=lab)
