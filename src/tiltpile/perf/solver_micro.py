@@ -1,12 +1,10 @@
 """Microbench of the NLGS sweep: ns per contact update at a fixed sweep count, all in one process.
 
 Usage: python -m tiltpile.perf.solver_micro N SWEEPS REPEATS
-State: the cached bench pile data/bench/pile_n{N}_s0_*.npz, tilted 20 steps. Also times the
+State: the bench pile of bench.settled_pile (cached, deposited if missing), tilted 20 steps. Also times the
 same kernel compiled with fastmath={"contract"} (FMA) and fastmath=True, which the project does
 not use (sim/jit.py).
 """
-import glob
-import json
 import sys
 import time
 
@@ -14,15 +12,11 @@ import numba
 import numpy as np
 
 from tiltpile import bench
-from tiltpile.sim import protocol, solver
+from tiltpile.sim import solver
 
 n, sweeps, reps = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
 cfg = bench.bench_config(n)
-s = protocol.make_system(cfg, 0)
-with np.load(sorted(glob.glob(f"data/bench/pile_n{n}_s0_*.npz"))[0]) as z:
-    st = {k: z[k] for k in z.files if k != "scalars"}
-    st["scalars"] = json.loads(str(z["scalars"]))
-s.restore(st)
+s = bench.settled_pile(cfg, 0, progress=False)  # the cached pile of exactly this config
 s.advance(20, 0.0, cfg.protocol.tilt_per_step_deg)
 C = s.ci.shape[0]
 fm = numba.njit(cache=False, nogil=True, fastmath={"contract"}, error_model="numpy")(solver.nlgs.py_func)

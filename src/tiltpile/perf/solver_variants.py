@@ -12,26 +12,20 @@ Per step: NLGS sweeps, wall time; every EVAL_EVERY steps the true error of the s
          sweeps (tol 1e-13): the unbalanced force the solver left, in units of m g (rms also given);
   dp     relative L2 change of the impulses over those further sweeps.
 """
-import glob
-import json
 import sys
 import time
 
 import numpy as np
 
 from tiltpile import bench
-from tiltpile.sim import protocol, solver
+from tiltpile.sim import solver
 
 n, steps = int(sys.argv[1]), int(sys.argv[2])
 every = int(sys.argv[3]) if len(sys.argv) > 3 else 1
 specs = sys.argv[4:] or ["random:1", "forward:1", "alternating:1", "forward:1.3", "forward:1.5",
                          "forward:1.7", "forward:1.8", "random:1.5", "random:1.7"]
 cfg = bench.bench_config(n)
-s = protocol.make_system(cfg, 0)
-with np.load(sorted(glob.glob(f"data/bench/pile_n{n}_s0_*.npz"))[0]) as z:
-    st = {k: z[k] for k in z.files if k != "scalars"}
-    st["scalars"] = json.loads(str(z["scalars"]))
-s.restore(st)
+s = bench.settled_pile(cfg, 0, progress=False)  # the cached pile of exactly this config
 dth = cfg.protocol.tilt_per_step_deg
 dt = cfg.solver.dt
 s.params.update(mode=solver.FORWARD, relax=1.0)
