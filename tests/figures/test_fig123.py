@@ -308,3 +308,10 @@ def test_snapshot_layers_categories_and_segments():
     fig, ax = plt.subplots()
     fig3.draw_snapshot(ax, lay)
     plt.close(fig)
+    # counted geometrically (lost_gap), as the observables can be: grain 2 moves 0.01 d away
+    # from 1 by the next frame, grain 0 stays on the fixed grain 4; only 1-2 has opened
+    moved = position.copy()
+    moved[2:4, 0] += 0.01
+    geo = fig3.snapshot_layers(dict(snap, next_position=moved), lost_gap=1e-3)
+    assert (geo["n_failing"], geo["n_failing_in_cluster"]) == (2, 1)
+    assert geo["category"][0] == fig3.CLUSTER and geo["category"][2] == fig3.FAIL_OUTSIDE

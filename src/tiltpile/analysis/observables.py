@@ -115,6 +115,37 @@ def _run_id(run, path) -> int:
     return int(m.group(1))
 
 
+def frame_contacts(radius, fixed, box_length, position, pair, force, status, mu=0.5,
+                   mu_wall=None, eps=None, link="contacts", cluster_region="mobile",
+                   ray_spacing=0.1, touch_tol=0.05) -> dict:
+    """The contacts of one frame as every observable sees them (also the pile pictures).
+
+    Contacts without a mobile grain (fixed-fixed, fixed-wall) carry no information and are
+    dropped; active = f_n > 0; mobilized by :func:`~tiltpile.analysis.contacts.mobilized_mask`
+    (sliding flag, or the threshold ``eps`` with mu / mu_wall); bulk grains by
+    :func:`~tiltpile.analysis.contacts.bulk_mask`; critical clusters over mobile (or bulk) grains.
+    Returns dict pair, force, status (the kept contacts), active, mobilized (per kept contact),
+    bulk (N,) bool and labels (N,) cluster labels (-1: none).
+    """
+    fixed = np.asarray(fixed, dtype=bool)
+    n = fixed.size
+    mobile = ~fixed
+    pair = np.asarray(pair).reshape(-1, 2)
+    force = np.asarray(force, dtype=float).reshape(-1, 2)
+    jj = np.maximum(pair[:, 1], 0)
+    moving = mobile[pair[:, 0]] | ((pair[:, 1] >= 0) & mobile[jj])
+    pair, force = pair[moving], force[moving]
+    status = None if status is None else np.asarray(status)[moving]
+    active = _ct.active_mask(force)
+    mu_c = mu if mu_wall is None else np.where(pair[:, 1] < 0, mu_wall, mu)
+    mobil = _ct.mobilized_mask(force, status, mu_c, eps)
+    bulk = _ct.bulk_mask(position, radius, fixed, pair, box_length, ray_spacing, touch_tol)
+    include = bulk if cluster_region == "bulk" else mobile
+    labels = _cl.critical_clusters(n, pair, active, mobil, include, link)
+    return {"pair": pair, "force": force, "status": status, "active": active,
+            "mobilized": mobil, "bulk": bulk, "labels": labels}
+
+
 def frame_observables(radius, fixed, box_length, position, velocity, omega, pair, force, status,
                       theta_deg, mu=0.5, mu_wall=None, eps=None, link="contacts",
                       cluster_region="mobile", min_contacts=2, ray_spacing=0.1,
@@ -129,28 +160,20 @@ def frame_observables(radius, fixed, box_length, position, velocity, omega, pair
 
     Returns (row, clusters, keep): row a dict of per-frame scalars (bulk z, n_m, dz_gen, ...),
     clusters the :func:`tiltpile.analysis.clusters.cluster_table` of the frame, and keep a dict
-    of arrays needed to compare with the next frame (pair, active, labels).
+    of arrays needed to compare with the next frame (pair, active, labels, position).
     """
     fixed = np.asarray(fixed, dtype=bool)
     n = fixed.size
     mobile = ~fixed
-    pair = np.asarray(pair).reshape(-1, 2)
-    force = np.asarray(force, dtype=float).reshape(-1, 2)
-    # contacts with no mobile grain (fixed-fixed, fixed-wall) carry no information: dropped
-    jj = np.maximum(pair[:, 1], 0)
-    moving = mobile[pair[:, 0]] | ((pair[:, 1] >= 0) & mobile[jj])
-    pair, force = pair[moving], force[moving]
-    status = None if status is None else np.asarray(status)[moving]
-    active = _ct.active_mask(force)
-    mu_c = mu if mu_wall is None else np.where(pair[:, 1] < 0, mu_wall, mu)
-    mobil = _ct.mobilized_mask(force, status, mu_c, eps)
-    bulk = _ct.bulk_mask(position, radius, fixed, pair, box_length, ray_spacing, touch_tol)
+    fc = frame_contacts(radius, fixed, box_length, position, pair, force, status, mu=mu,
+                        mu_wall=mu_wall, eps=eps, link=link, cluster_region=cluster_region,
+                        ray_spacing=ray_spacing, touch_tol=touch_tol)
+    pair, active, mobil, bulk, labels = (fc["pair"], fc["active"], fc["mobilized"], fc["bulk"],
+                                         fc["labels"])
     bc = _ct.bulk_coordination(pair, active, mobil, bulk, fixed, min_contacts)
     z_all, n_m_all, _ = _ct.coordination(bc["z_i"], bc["m_i"], mobile & ~bc["rattler"])
     z_full = _ct.contact_counts(n, pair, active)
     m_full = _ct.contact_counts(n, pair, mobil)
-    include = bulk if cluster_region == "bulk" else mobile
-    labels = _cl.critical_clusters(n, pair, active, mobil, include, link)
     ctab = _cl.cluster_table(labels, position, z_full, m_full, theta_deg)
     rest = bulk & ~bc["rattler"] & (labels < 0)
     z_rest, _, n_rest = _ct.coordination(bc["z_i"], bc["m_i"], rest)
@@ -172,6 +195,18 @@ def frame_observables(radius, fixed, box_length, position, velocity, omega, pair
     return row, ctab, {"pair": pair, "active": active, "labels": labels, "position": position}
 
 
+def lost_between(prev: dict, cur: dict, n: int, radius=None, box_length=None,
+                 lost_gap: float | None = None) -> np.ndarray:
+    """Which contacts of frame k (``prev``: pair, active, and position if ``lost_gap``) are lost
+    by frame k + 1 (``cur``: pair, active, position): not active any more, and with ``lost_gap``
+    also opened by more than lost_gap (d) (:func:`failure_between`). Returns (C_k,) bool."""
+    lost = _ct.lost_contacts(prev["pair"], prev["active"], cur["pair"], cur["active"], n)
+    if lost_gap is not None:
+        gap = _ct.contact_gaps(prev["pair"], cur["position"], radius, box_length)
+        lost = lost & (gap > lost_gap)
+    return lost
+
+
 def failure_between(prev: dict, cur: dict, fixed: np.ndarray, radius=None, box_length=None,
                     lost_gap: float | None = None) -> dict:
     """Lost contacts and failing grains from frame k (``prev``) to k + 1 (``cur``).
@@ -185,10 +220,7 @@ def failure_between(prev: dict, cur: dict, fixed: np.ndarray, radius=None, box_l
     frame k), failing_in_cluster_fraction.
     """
     n = fixed.size
-    lost = _ct.lost_contacts(prev["pair"], prev["active"], cur["pair"], cur["active"], n)
-    if lost_gap is not None:
-        gap = _ct.contact_gaps(prev["pair"], cur["position"], radius, box_length)
-        lost = lost & (gap > lost_gap)
+    lost = lost_between(prev, cur, n, radius, box_length, lost_gap)
     failing = _ct.failing_grains(n, prev["pair"], lost, fixed)
     n_act = int(prev["active"].sum())
     nf = int(failing.sum())

@@ -72,11 +72,13 @@ def load_ensemble(data_dir, preset: str | None = None, **analysis_params) -> Ens
 
 
 def snapshot(ens: Ensemble, seed: int, frame: int) -> dict:
-    """Positions, radii, contacts of one stored frame (for the pile pictures of Figs. 1b and 3)."""
+    """Positions, radii, contacts of one stored frame, and the contacts and positions of the next
+    (``next``, ``next_position``; None at the last frame), for the pile pictures of Figs. 1b and 3."""
     from tiltpile.store import open_run
     with open_run(ens.run_path(seed)) as r:
         pair, force, status = r.contacts(frame)
+        last = frame + 1 >= r.n_frames
         return {"position": r.position(frame), "radius": r.radius, "fixed": r.fixed,
                 "pair": pair, "force": force, "status": status, "theta_deg": float(r.theta_deg[frame]),
-                "box_length": r.box_length, "next": (r.contacts(frame + 1) if frame + 1 < r.n_frames
-                                                     else None)}
+                "box_length": r.box_length, "next": None if last else r.contacts(frame + 1),
+                "next_position": None if last else r.position(frame + 1)}

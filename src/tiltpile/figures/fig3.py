@@ -31,7 +31,7 @@ import numpy as np
 import pandas as pd
 
 from tiltpile.analysis import DEFAULT_PARAMS
-from tiltpile.analysis import clusters as _cl
+from tiltpile.analysis import observables as _ob
 from tiltpile.analysis import contacts as _ct
 from tiltpile.analysis import stats as _st
 
@@ -43,7 +43,6 @@ NAME = "fig3_clusters_failure"
 GRAIN, FIXED, CLUSTER, FAIL_IN_CLUSTER, FAIL_OUTSIDE = range(5)
 CATEGORY_COLORS = [style.COLORS["grain"], style.COLORS["fixed"], style.COLORS["cluster"],
                    style.COLORS["fail_in_cluster"], style.COLORS["fail_outside"]]
-FAILURE_COUNTS = ("n_lost", "n_failing", "n_failing_in_cluster")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -53,22 +52,6 @@ FAILURE_COUNTS = ("n_lost", "n_failing", "n_failing_in_cluster")
 def analysis_params(ens) -> dict:
     """The analysis parameters the ensemble's tables were computed with (defaults filled in)."""
     return dict(DEFAULT_PARAMS, **(ens.meta.get("analysis") or {}))
-
-
-def failure_frames(frames: pd.DataFrame) -> pd.DataFrame:
-    """The per-frame table sorted by (run, frame), failure counts of frames without a successor
-    (the -1 sentinels of the last frame, lost_fraction NaN) turned into NaN.
-
-    The analysis library's C(tau) and failure enhancement drop non-finite values but would take
-    -1 as a number; this makes them skip the last frame of each run.
-    """
-    f = frames.sort_values(["run", "frame"], kind="stable").copy()
-    none = ~np.isfinite(f["lost_fraction"].to_numpy(float))
-    for c in FAILURE_COUNTS:
-        if c in f:
-            v = f[c].to_numpy(float)
-            f[c] = np.where(none | (v < 0), np.nan, v)
-    return f
 
 
 def frame_before_onset(frames: pd.DataFrame, seed: int, offset_deg: float = 0.3) -> int:
@@ -97,14 +80,13 @@ def frame_before_onset(frames: pd.DataFrame, seed: int, offset_deg: float = 0.3)
 def snapshot_layers(snap: dict, mu: float = 0.5, mu_wall: float | None = None,
                     eps: float | None = None, link: str = "contacts",
                     cluster_region: str = "mobile", ray_spacing: float = 0.1,
-                    touch_tol: float = 0.05) -> dict:
+                    touch_tol: float = 0.05, lost_gap: float | None = None) -> dict:
     """What the pile pictures of Figs. 1b and 3 draw, from one frame (a :func:`data.snapshot`).
 
-    Same rules as the observables (tiltpile.analysis.observables.frame_observables): contacts
-    without a mobile grain dropped; active = f_n > 0; fully mobilized by
-    :func:`~tiltpile.analysis.contacts.mobilized_mask` (sliding flag, or the threshold ``eps``);
-    clusters by :func:`~tiltpile.analysis.clusters.critical_clusters` over mobile (or bulk)
-    grains; failing grains = mobile ends of a contact active now and not in the next frame.
+    The contacts, mobilized contacts and clusters are those of the observables
+    (:func:`tiltpile.analysis.observables.frame_contacts`); failing grains are the mobile ends of
+    the contacts lost by the next frame (:func:`~tiltpile.analysis.observables.lost_between`, with
+    the same ``lost_gap``).
 
     Returns dict: position (N, 2), radius (N,), category (N,) int8 (GRAIN, FIXED, CLUSTER,
     FAIL_IN_CLUSTER, FAIL_OUTSIDE), segments (M, 2, 2) one per fully mobilized contact (centre to
@@ -116,28 +98,17 @@ def snapshot_layers(snap: dict, mu: float = 0.5, mu_wall: float | None = None,
     fixed = np.asarray(snap["fixed"], dtype=bool)
     L = float(snap["box_length"])
     n = radius.size
-    mobile = ~fixed
-    pair = np.asarray(snap["pair"]).reshape(-1, 2).astype(np.int64)
-    force = np.asarray(snap["force"], dtype=float).reshape(-1, 2)
-    status = None if snap.get("status") is None else np.asarray(snap["status"])
-    jj = np.maximum(pair[:, 1], 0)
-    moving = mobile[pair[:, 0]] | ((pair[:, 1] >= 0) & mobile[jj])
-    pair, force = pair[moving], force[moving]
-    status = None if status is None else status[moving]
-    active = _ct.active_mask(force)
-    mu_c = mu if mu_wall is None else np.where(pair[:, 1] < 0, mu_wall, mu)
-    mobil = _ct.mobilized_mask(force, status, mu_c, eps)
-    if cluster_region == "bulk":
-        include = _ct.bulk_mask(pos, radius, fixed, pair, L, ray_spacing, touch_tol)
-    else:
-        include = mobile
-    labels = _cl.critical_clusters(n, pair, active, mobil, include, link)
+    fc = _ob.frame_contacts(radius, fixed, L, pos, snap["pair"], snap["force"], snap.get("status"),
+                            mu=mu, mu_wall=mu_wall, eps=eps, link=link,
+                            cluster_region=cluster_region, ray_spacing=ray_spacing,
+                            touch_tol=touch_tol)
+    pair, mobil, labels = fc["pair"], fc["mobilized"], fc["labels"]
     in_cluster = labels >= 0
     failing = np.zeros(n, dtype=bool)
     if snap.get("next") is not None:
-        p2, f2 = snap["next"][0], snap["next"][1]
-        lost = _ct.lost_contacts(pair, active, np.asarray(p2).reshape(-1, 2),
-                                 _ct.active_mask(f2), n)
+        p2, f2 = np.asarray(snap["next"][0]).reshape(-1, 2), snap["next"][1]
+        cur = {"pair": p2, "active": _ct.active_mask(f2), "position": snap.get("next_position")}
+        lost = _ob.lost_between({"pair": pair, "active": fc["active"]}, cur, n, radius, L, lost_gap)
         failing = _ct.failing_grains(n, pair, lost, fixed)
     cat = np.full(n, GRAIN, dtype=np.int8)
     cat[fixed] = FIXED
@@ -170,7 +141,7 @@ def load_snapshot(ens, seed: int, frame: int) -> dict:
     lay = snapshot_layers(data.snapshot(ens, seed, frame), mu=mu,
                           mu_wall=float(scene.get("mu_wall", mu)), eps=p["eps"], link=p["link"],
                           cluster_region=p["cluster_region"], ray_spacing=p["ray_spacing"],
-                          touch_tol=p["touch_tol"])
+                          touch_tol=p["touch_tol"], lost_gap=p["lost_gap"])
     lay.update(seed=int(seed), frame=int(frame))
     return lay
 
@@ -352,7 +323,8 @@ def compute(ens, sample_seed: int | None = None, snapshot_offset_deg: float = 0.
                                   clusters would give 45 on average; paper ~60)
       orientation_mean_avalanche_deg, n_clusters_orientation_avalanche   same, avalanching frames
     """
-    fr = failure_frames(ens.frames)
+    # the library's C(tau) and enhancement skip the last frame's forward counts themselves
+    fr = ens.frames.sort_values(["run", "frame"], kind="stable")
     quiet_all = ~fr["avalanching"].to_numpy(bool)
     has_next = np.isfinite(fr["lost_fraction"].to_numpy(float))
     qf = fr[quiet_all & has_next]
