@@ -75,11 +75,19 @@ def log_binned_density(x, bins_per_decade: int = 10, xmin: float | None = None,
     return df
 
 
+def log_int_edges(s_max: int, bins_per_decade: int = 5, s_min: int = 1) -> np.ndarray:
+    """Integer bin edges [a, b) covering s_min..s_max, log-spaced: ceil(s_min 10^(k /
+    bins_per_decade)) made distinct (each small size gets its own bin), the last edge s_max + 1."""
+    top = int(max(s_max, s_min)) + 1
+    k = np.arange(0, int(np.ceil(np.log10(top) * bins_per_decade)) + 2)
+    edges = np.unique(np.ceil(s_min * 10.0 ** (k / bins_per_decade)).astype(np.int64))
+    return np.append(edges[edges < top], top)
+
+
 def discrete_log_binned_density(s, bins_per_decade: int = 5, s_min: int = 1) -> pd.DataFrame:
     """Probability mass per integer of an integer quantity (cluster sizes), on log bins.
 
-    Bins are integer ranges [a, b) with a, b ~ 10^(k / bins_per_decade) rounded up to distinct
-    integers (so small sizes get one bin each); density = count / (n * (b - a)), i.e. the mean
+    Bins are integer ranges [a, b) from :func:`log_int_edges`; density = count / (n * (b - a)), i.e. the mean
     P(s) over the integers of the bin. s >= s_min only. Returns DataFrame left, right (exclusive),
     center (geometric mean of the bin's integers' range), count, density.
     """
@@ -88,12 +96,7 @@ def discrete_log_binned_density(s, bins_per_decade: int = 5, s_min: int = 1) -> 
     cols = ["left", "right", "center", "count", "density"]
     if s.size == 0:
         return pd.DataFrame(columns=cols)
-    top = int(s.max()) + 1
-    k = np.arange(0, int(np.ceil(np.log10(top) * bins_per_decade)) + 2)
-    edges = np.unique(np.ceil(s_min * 10.0 ** (k / bins_per_decade)).astype(np.int64))
-    edges = edges[edges <= top]
-    if edges[-1] < top:
-        edges = np.append(edges, top)
+    edges = log_int_edges(int(s.max()), bins_per_decade, s_min)
     count, _ = np.histogram(s, bins=edges)
     width = np.diff(edges)
     return pd.DataFrame({"left": edges[:-1], "right": edges[1:],

@@ -37,6 +37,7 @@ import numpy as np
 import pandas as pd
 
 from tiltpile.analysis import dz_by_size, dz_distribution, dz_gen
+from tiltpile.analysis import stats as _st
 
 from . import style
 
@@ -44,20 +45,6 @@ D = 2
 DZ_GLOBAL = 0.0                          # Eq. (1): z = z_iso^gen
 DZ_SINGLE_GRAIN = (D + 1) / 2 - (D + 1)  # z - 2 n_m / d >= (d + 1) / 2, i.e. -1.5 in 2D
 TOL = 1e-9
-
-
-def log_size_edges(s_max: int, bins_per_decade: int = 5, s_min: int = 1) -> np.ndarray:
-    """Integer bin edges [a, b) for cluster sizes s_min..s_max, log-spaced.
-
-    Edges ceil(s_min 10^(k / bins_per_decade)), made distinct (so each small size gets its own
-    bin), the last one s_max + 1 -- the binning of
-    :func:`tiltpile.analysis.stats.discrete_log_binned_density`, which does not expose its edges.
-    """
-    top = int(max(s_max, s_min)) + 1
-    k = np.arange(0, int(np.ceil(np.log10(top / s_min) * bins_per_decade)) + 2)
-    e = np.unique(np.ceil(s_min * 10.0 ** (k / bins_per_decade)).astype(np.int64))
-    e = e[e < top]
-    return np.append(e, top)
 
 
 def class_label(lo: int, hi: int | None) -> str:
@@ -113,7 +100,7 @@ def compute(ens, size_classes=(1, 2, 3, 5, 10), bins_per_decade: int = 5,
     by_class["n"] = by_class["n"].fillna(0).astype(int)
     dists = [dz_distribution(cl, a, b) for a, b in zip(lows, highs)]
 
-    bins = dz_by_size(cl, log_size_edges(s_max, bins_per_decade)) if len(cl) else \
+    bins = dz_by_size(cl, _st.log_int_edges(s_max, bins_per_decade)) if len(cl) else \
         pd.DataFrame(columns=["size_lo", "size_hi", "n", "dz_mean", "dz_min", "dz_std"])
     bins = bins.astype({"size_lo": float, "size_hi": float})
     bins["center"] = np.sqrt(bins["size_lo"] * (bins["size_hi"] - 1.0))
