@@ -7,7 +7,8 @@ A step from t to t + dt, with gravity g(theta) = (sin theta, -cos theta) (g = 1)
 2. if a grain could leave the region where the candidate list is valid -- its displacement since
    the last build plus dt |v*| exceeds alert / 2 -- rebuild the list (``detect``) and carry the
    impulses over by particle pair;
-3. contact geometry at the start of the step: unit normal n, gap g, b = g / dt;
+3. contact geometry at the start of the step: unit normal n, gap g, b = g / dt (for an overlap,
+   g < 0, b = min(0, g + slop) / dt: see "Overlap slop" below);
 4. warm start: the impulses of the previous step are applied to v*;
 5. NLGS until converged (``solver``): velocities v(t + dt) and impulses;
 6. positions x += dt v(t + dt), rotations phi += dt s / r (theta = 1: implicit Euler on
@@ -18,6 +19,19 @@ the step (max(-g), 0 if none), the kinetic energy of mobile grains, the work of 
 step (dt sum_i m_i g . v_i(t + dt), exactly the work along the implicit-Euler displacement), and
 whether a grain moved farther than alert / 2 since the last build after the step (a contact could
 have been missed: the time step is too large for the alert distance).
+
+Overlap slop (``slop`` = solver.overlap_slop, default 0). With b = g / dt every overlap is pushed
+out in full in the next step. An NLGS stopped at its tolerance leaves velocity errors of about
+tol; integrated, they become overlaps of ~1e-8 d, which the next step's gap term turns back into
+a velocity target of the same size. Each step so restarts from an error of about tol and spends
+its sweeps removing it again: ~200 sweeps per step on a 1000-grain pile held still, at any tol
+from 1e-5 to 1e-8 (the slowest NLGS mode loses ~0.1% per sweep). Overlaps up to ``slop`` are left
+alone (b = 0) and deeper ones are pushed back to ``slop``, not to zero -- the dead zone of
+Box2D's "linear slop" (E. Catto) applied to Moreau-Jean's gap term. With slop 1e-6 d the same
+pile needs 12 sweeps per step at the same contact-law residual (``solver.natural_residual``
+6.0e-7 either way); overlaps stay <= ~1.1 slop. The price is drift: over 1 deg of tilt the median
+grain moves 1.4e-5 d instead of 4e-7 d at tol 1e-6; tol 1e-8 with the slop brings it back to
+3e-7 d at 612 sweeps per step (measured with the bench piles; issue 6 notes).
 
 Energy balance. With perfectly inelastic contacts, Coulomb friction and a converged solver the
 change of kinetic energy over a step is at most the work of gravity: with v' = v + dt g + M^-1 H p,
@@ -40,7 +54,7 @@ from tiltpile.sim.solver import apply_impulses, nlgs
 
 
 @njit
-def contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall):
+def contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall, slop=0.0):
     """Fill c[:, 0:6] (normal, b = gap / dt, mu, 1/W_nn, 1/W_tt); return the largest overlap."""
     n = pos.shape[0]
     overlap = 0.0
@@ -69,7 +83,8 @@ def contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall):
         iw = 1.0 / (vel[i, 3] + vel[j, 3])
         c[a, 0] = nx
         c[a, 1] = ny
-        c[a, 2] = gap / dt
+        # an overlap within the slop is left alone; a larger one is pushed back to the slop
+        c[a, 2] = gap / dt if gap >= 0.0 else min(0.0, gap + slop) / dt
         c[a, 3] = m
         c[a, 4] = iw
         c[a, 5] = iw / 3.0
@@ -78,7 +93,7 @@ def contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall):
 
 @njit
 def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state, perm,
-            box_length, dt, alert, mu, mu_wall, tol, max_iter, mode, relax, gravity,
+            box_length, dt, alert, mu, mu_wall, tol, max_iter, mode, relax, slop, gravity,
             theta0, dtheta, n_steps, out_iter, out_res, out_overlap, out_ke, out_work, out_missed):
     """Advance ``n_steps`` steps; gravity angle of step k is theta0 + (k + 1) dtheta [rad],
     its magnitude ``gravity`` (1 in every run; 0 in some validation tests).
@@ -112,7 +127,7 @@ def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state
             perm = np.empty(ci.shape[0], np.int64)
             ref[:, :] = pos
             rebuilds += 1
-        out_overlap[k] = contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall)
+        out_overlap[k] = contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall, slop)
         apply_impulses(ci, cj, c, vel)
         it, res = nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm, relax)
         out_iter[k] = it
@@ -176,7 +191,7 @@ class System:
     ARRAYS = ("radius", "fixed", "pos", "rot", "vel", "ref", "ci", "cj", "key", "c", "status", "rng")
 
     def __init__(self, radius, fixed, pos, inv_mass, rng, *, box_length, dt, alert, mu, mu_wall,
-                 tol, max_iter, mode, relax=1.0, gravity=1.0):
+                 tol, max_iter, mode, relax=1.0, slop=0.0, gravity=1.0):
         from tiltpile.sim.solver import empty_contacts
 
         n = radius.shape[0]
@@ -192,7 +207,7 @@ class System:
         self.rng = rng
         self.params = dict(box_length=float(box_length), dt=float(dt), alert=float(alert), mu=float(mu),
                            mu_wall=float(mu_wall), tol=float(tol), max_iter=int(max_iter), mode=int(mode),
-                           relax=float(relax), gravity=float(gravity))
+                           relax=float(relax), slop=float(slop), gravity=float(gravity))
         self.scalars: dict = {}
 
     @property
@@ -207,7 +222,8 @@ class System:
         (self.ci, self.cj, self.key, self.c, self.status, self.perm, rec.rebuilds) = advance(
             self.pos, self.rot, self.vel, self.radius, self.fixed, self.ref, self.ci, self.cj, self.key,
             self.c, self.status, self.rng, self.perm, p["box_length"], p["dt"], p["alert"], p["mu"],
-            p["mu_wall"], p["tol"], p["max_iter"], p["mode"], p["relax"], p["gravity"], math.radians(theta0_deg),
+            p["mu_wall"], p["tol"], p["max_iter"], p["mode"], p["relax"], p["slop"], p["gravity"],
+            math.radians(theta0_deg),
             math.radians(dtheta_deg), n_steps, rec.iterations, rec.residual, rec.overlap, rec.ke,
             rec.work, rec.missed)
         return rec
