@@ -79,10 +79,11 @@ class SolverConfig:
     relax: float = _f(1.0, lo=0.0, lo_open=True, hi=2.0, hi_open=True,
                       doc="over-relaxation factor omega of the local solves (projected SOR; "
                           "1 = plain NLGS)")
-    # 0 = the plain gap term (bit-identical to before). 1e-6 d: 17x fewer sweeps per step on the
-    # 1000-grain bench pile at equal contact-law residual, 30x more drift per degree of tilt
-    # (sim/step.py "Overlap slop"); not the default until the presets are re-measured with it.
-    overlap_slop: float = _f(0.0, lo=0.0, hi=0.01,
+    # 1e-6 d: 17x fewer sweeps per step on the 1000-grain bench pile than the plain gap term (0)
+    # at equal contact-law residual, 30x more drift per degree of tilt (sim/step.py "Overlap
+    # slop"); 1e-6 d is 60x the overlaps an unconverged step leaves (~1.5e-8 d) and 1e-4 of the
+    # smallest length the analysis uses (lost_gap 1e-4 d).
+    overlap_slop: float = _f(1e-6, lo=0.0, hi=0.01,
                              doc="overlaps up to this [d] are not pushed out by the gap term")
     alert: float = _f(0.1, lo=0.0, lo_open=True, hi=1.0,
                       doc="alert distance (d) of the candidate contact list")
