@@ -33,8 +33,9 @@ temporary name, then renamed):
    ``tile_settle_steps`` steps at tol 1e-4 at theta = 0 (the seams relax), then 20 untimed tilt
    steps at the timed tolerance, then ``scaling_steps`` timed tilt steps, each timed alone:
    median ms per step, ns per contact update (time / (sweeps x candidate contacts)), sweeps per
-   step. Forward relax 1 (the default) at every N; random relax 1 (plain NLGS reference) and
-   forward relax 1.5 (projected SOR) at ``variant_ns`` as well, from the same state.
+   step. Forward relax 1 with the default overlap slop at every N; at ``variant_ns`` also, from
+   the same state: random relax 1 with slop 0 (plain NLGS with the plain gap term, the reference
+   of issue 6), forward relax 1 with slop 0, and forward relax 1.5 (projected SOR).
 
 ``summary.json``: machine (``os.cpu_count()``, platform, numba version), date, command, timings
 of each part, the settings, and the fitted scaling (line through the origin, log-log slope).
@@ -73,7 +74,7 @@ ACCURACY_COLUMNS = [
     "theta_m_shift", "z_shift", "n_m_shift", "resolution_warning",
 ]
 SCALING_COLUMNS = [
-    "n", "copies", "box_length", "sweep", "relax", "tol", "steps", "contacts", "active_contacts",
+    "n", "copies", "box_length", "sweep", "relax", "slop", "tol", "steps", "contacts", "active_contacts",
     "ms_per_step", "ms_per_step_mean", "ns_per_update", "sweeps_mean", "sweeps_median", "cap_hits",
     "settle_s", "fixed_sweeps",
 ]
@@ -338,7 +339,7 @@ def tile(sysm: System, copies: int) -> System:
     out = System(sysm.radius[orig], sysm.fixed[orig], pos, sysm.vel[orig, 3], sysm.rng.copy(),
                  box_length=k * L, dt=p["dt"], alert=p["alert"], mu=p["mu"], mu_wall=p["mu_wall"],
                  tol=p["tol"], max_iter=p["max_iter"], mode=p["mode"], relax=p["relax"],
-                 gravity=p["gravity"])
+                 slop=p["slop"], gravity=p["gravity"])
     out.rot[:] = np.where(odd, -1.0, 1.0) * sysm.rot[orig]
     vel = sysm.vel[orig, :3].copy()
     vel[odd, 0] *= -1.0
@@ -387,29 +388,30 @@ def scaling_sweep(spec: ChartSpec, progress: bool = True) -> pd.DataFrame:
         s.advance(20, 0.0, dth)
         settle = time.perf_counter() - t1
         start = s.state()
-        variants = [("forward", 1.0)]
+        slop = cfg.solver.overlap_slop
+        variants = [("forward", 1.0, slop)]
         if n in spec.variant_ns:
-            variants += [("random", 1.0), ("forward", 1.5)]
-        for sweep, relax in variants:
+            variants += [("random", 1.0, 0.0), ("forward", 1.0, 0.0), ("forward", 1.5, slop)]
+        for sweep, relax, sl in variants:
             s.restore(start)
-            s.params.update(mode=solver.SWEEPS[sweep], relax=relax)
+            s.params.update(mode=solver.SWEEPS[sweep], relax=relax, slop=sl)
             steps = spec.scaling_steps if n <= 4000 else spec.scaling_steps_large
-            if (sweep, relax) != ("forward", 1.0):
+            if (sweep, relax, sl) != variants[0]:
                 steps = min(steps, spec.variant_steps)
             r = dict(n=n, copies=k, box_length=s.params["box_length"], sweep=sweep, relax=relax,
-                     tol=spec.scaling_tol, settle_s=settle, fixed_sweeps=0)
+                     slop=sl, tol=spec.scaling_tol, settle_s=settle, fixed_sweeps=0)
             r.update(_time_steps(s, steps, 20 * dth, dth))
             rows.append(r)
-            _log(f"[scaling] n {n} {sweep} relax {relax:g}: {r['ms_per_step']:.1f} ms/step, "
+            _log(f"[scaling] n {n} {sweep} relax {relax:g} slop {sl:g}: {r['ms_per_step']:.1f} ms/step, "
                  f"{r['sweeps_mean']:.0f} sweeps/step, {r['ns_per_update']:.1f} ns/update, "
                  f"{r['contacts']} contacts", progress)
         # the cost of a step at a fixed number of sweeps (tol 0: never converged, exactly
         # fixed_sweeps sweeps): valid whether or not the tiled pile has settled, and the part of
         # the cost per step that must be linear in N; sweeps per step are measured separately
         s.restore(start)
-        s.params.update(mode=solver.FORWARD, relax=1.0, tol=0.0, max_iter=spec.fixed_sweeps)
+        s.params.update(mode=solver.FORWARD, relax=1.0, slop=slop, tol=0.0, max_iter=spec.fixed_sweeps)
         r = dict(n=n, copies=k, box_length=s.params["box_length"], sweep="forward", relax=1.0,
-                 tol=0.0, settle_s=settle, fixed_sweeps=spec.fixed_sweeps)
+                 slop=slop, tol=0.0, settle_s=settle, fixed_sweeps=spec.fixed_sweeps)
         r.update(_time_steps(s, spec.fixed_steps, 20 * dth, dth))
         s.params.update(tol=spec.scaling_tol, max_iter=cfg.solver.max_iter)
         rows.append(r)
@@ -419,7 +421,8 @@ def scaling_sweep(spec: ChartSpec, progress: bool = True) -> pd.DataFrame:
 
 
 def scaling_fit(df: pd.DataFrame) -> dict:
-    out = _linear_fit(df[(df["sweep"] == "forward") & (df["relax"] == 1.0) & (df["fixed_sweeps"] == 0)])
+    out = _linear_fit(df[(df["sweep"] == "forward") & (df["relax"] == 1.0) & (df["slop"] > 0)
+                         & (df["fixed_sweeps"] == 0)])
     fixed = df[df["fixed_sweeps"] > 0].sort_values("n")
     if len(fixed) >= 2:
         f = _linear_fit(fixed)
@@ -554,9 +557,10 @@ def plot_scaling(sc: pd.DataFrame, fit: dict, path: Path, tilt_per_step: float =
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 3, figsize=(16, 5))
-    styles = {("forward", 1.0): ("o-", "C0", "forward, relax 1 (default)"),
-              ("random", 1.0): ("s", "C3", "random, relax 1 (plain NLGS)"),
-              ("forward", 1.5): ("^", "C2", "forward, relax 1.5 (SOR)")}
+    styles = {("forward", 1.0, True): ("o-", "C0", "forward, relax 1, overlap slop (default)"),
+              ("random", 1.0, False): ("s", "C3", "random, relax 1, slop 0 (plain NLGS reference)"),
+              ("forward", 1.0, False): ("v", "C1", "forward, relax 1, slop 0"),
+              ("forward", 1.5, True): ("^", "C2", "forward, relax 1.5 (SOR), slop")}
     fixed = sc[sc["fixed_sweeps"] > 0].sort_values("n")
     if len(fixed):
         lab = f"forward, exactly {int(fixed['fixed_sweeps'].iloc[0])} sweeps per step"
@@ -567,9 +571,9 @@ def plot_scaling(sc: pd.DataFrame, fit: dict, path: Path, tilt_per_step: float =
             nn = np.geomspace(sc["n"].min(), sc["n"].max(), 50)
             axes[0].plot(nn, fx["ms_per_grain_origin_fit"] * nn, "--", color="C4", lw=1,
                          label=f"linear (fixed sweeps): slope {fx['loglog_slope']:.2f} log-log")
-    for (sweep, relax), d in sc[sc["fixed_sweeps"] == 0].groupby(["sweep", "relax"]):
+    for (sweep, relax, slop), d in sc[sc["fixed_sweeps"] == 0].groupby(["sweep", "relax", "slop"]):
         d = d.sort_values("n")
-        st, c, lab = styles.get((sweep, relax), ("x", "k", f"{sweep} {relax:g}"))
+        st, c, lab = styles.get((sweep, relax, slop > 0), ("x", "k", f"{sweep} {relax:g} slop {slop:g}"))
         axes[0].plot(d["n"], d["ms_per_step"], st, color=c, label=lab)
         axes[1].plot(d["n"], d["ns_per_update"], st, color=c, label=lab)
         axes[2].plot(d["n"], d["sweeps_mean"], st, color=c, label=lab)

@@ -1,7 +1,11 @@
 """Sweeps per step, cost and true error of NLGS variants on a settled bench pile while tilting.
 
 Usage: python -m tiltpile.perf.solver_variants N STEPS [EVAL_EVERY] [variant ...]
-  variant = sweep:relax[:tol], e.g. random:1  forward:1.6  forward:1.6:3e-7
+  variant = sweep:relax[:tol[:slop]], e.g. random:1  forward:1.6  forward:1.6:3e-7
+  random:1:1e-6:0 (plain random NLGS with the plain gap term: the reference of issue 6)
+  pile_slop=S (anywhere among the variants): deposit the pile with solver.overlap_slop = S
+  (default: the preset's). Compare schemes on piles deposited with their own slop: a pile
+  deposited with the slop holds overlaps up to 1e-6 d, which slop 0 then pushes out at once.
 All variants start from the same state (the cached bench pile of data/bench, tilted 20 steps with
 the plain forward sweep) and run STEPS steps of the tilt at 0.001 deg/step, in one process.
 Per step: NLGS sweeps, wall time; every EVAL_EVERY steps the true error of the step's end state:
@@ -10,7 +14,9 @@ Per step: NLGS sweeps, wall time; every EVAL_EVERY steps the true error of the s
   dv     force imbalance per mobile grain relative to its weight: max over grains of |v - v_ref| /
          (g dt), where v_ref is reached from the step's end state by 4000 further plain forward
          sweeps (tol 1e-13): the unbalanced force the solver left, in units of m g (rms also given);
-  dp     relative L2 change of the impulses over those further sweeps.
+  dp     relative L2 change of the impulses over those further sweeps;
+  drift  median displacement of the mobile grains over the STEPS steps, per degree of tilt [d/deg]
+         (a rigid pile below its failure angle should not move at all).
 """
 import sys
 import time
@@ -22,9 +28,10 @@ from tiltpile.sim import solver
 
 n, steps = int(sys.argv[1]), int(sys.argv[2])
 every = int(sys.argv[3]) if len(sys.argv) > 3 else 1
-specs = sys.argv[4:] or ["random:1", "forward:1", "alternating:1", "forward:1.3", "forward:1.5",
+pile_over = [f"solver.overlap_slop={a.split('=')[1]}" for a in sys.argv[4:] if a.startswith("pile_slop=")]
+specs = [a for a in sys.argv[4:] if not a.startswith("pile_slop=")] or ["random:1", "forward:1", "alternating:1", "forward:1.3", "forward:1.5",
                          "forward:1.7", "forward:1.8", "random:1.5", "random:1.7"]
-cfg = bench.bench_config(n)
+cfg = bench.bench_config(n, overrides=pile_over)
 s = bench.settled_pile(cfg, 0, progress=False)  # the cached pile of exactly this config
 dth = cfg.protocol.tilt_per_step_deg
 dt = cfg.solver.dt
@@ -34,15 +41,17 @@ start = s.state()
 mob = s.vel[: s.n, 3] > 0
 print(f"n={n} contacts={s.ci.shape[0]} steps={steps} tol={cfg.solver.tol} max_iter={cfg.solver.max_iter}")
 print(f"{'variant':18s} {'sweeps/step':>11s} {'ms/step':>8s} {'ns/upd':>7s} {'nat':>8s} {'dv_max':>8s} "
-      f"{'dv_rms':>8s} {'dp':>8s} {'capped':>6s}")
+      f"{'dv_rms':>8s} {'dp':>8s} {'capped':>6s} {'drift':>8s}")
 for spec in specs:
     parts = spec.split(":")
     mode = solver.SWEEPS[parts[0]]
     relax = float(parts[1])
     tol = float(parts[2]) if len(parts) > 2 else cfg.solver.tol
+    slop = float(parts[3]) if len(parts) > 3 else cfg.solver.overlap_slop
     s.restore(start)
-    s.params.update(mode=mode, relax=relax, tol=tol)
+    s.params.update(mode=mode, relax=relax, tol=tol, slop=slop)
     its, wall, upd, nat, dvm, dvr, dps = [], 0.0, 0, [], [], [], []
+    pos0 = s.pos.copy()
     for k in range(steps):
         t0 = time.perf_counter()
         rec = s.advance(1, (20 + k) * dth, dth)
@@ -61,4 +70,5 @@ for spec in specs:
     its = np.array(its)
     print(f"{spec:18s} {its.mean():8.1f} ({np.median(its):5.0f}) {1e3 * wall / steps:8.2f} {1e9 * wall / upd:7.2f} "
           f"{np.median(nat):8.1e} {np.median(dvm):8.1e} {np.median(dvr):8.1e} {np.median(dps):8.1e} "
-          f"{int((its >= cfg.solver.max_iter).sum()):6d}", flush=True)
+          f"{int((its >= cfg.solver.max_iter).sum()):6d} "
+          f"{np.median(np.hypot(*(s.pos - pos0)[mob[: s.n]].T)) / (steps * dth):8.1e}", flush=True)
