@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from tiltpile.sim import protocol
 from tiltpile.sim.rng import make_state
@@ -19,6 +20,27 @@ def make_system(radius, pos, *, fixed=None, box_length=100.0, dt=0.01, mu=0.5, m
     return System(radius, fixed, np.asarray(pos, float), inv_mass, make_state(0), box_length=box_length,
                   dt=dt, alert=alert, mu=mu, mu_wall=mu_wall, tol=tol, max_iter=max_iter,
                   mode=SWEEPS[sweep], slop=slop, gravity=gravity)
+
+
+def disk_column(n: int = 8, seed: int = 1, **kw):
+    """``n`` touching disks (radii uniform in [0.4, 0.6]) stacked on the floor at x = 50, solved
+    to tol 1e-14; ``kw`` go to :func:`make_system`. Returns (system, radii)."""
+    r = np.random.default_rng(seed).uniform(0.4, 0.6, size=n)
+    y = np.cumsum(2 * r) - r
+    sysm = make_system(r, np.column_stack([np.full(n, 50.0), y]), tol=1e-14, max_iter=100_000, **kw)
+    return sysm, r
+
+
+def assert_column_forces(sysm, r) -> None:
+    """Every contact of a settled :func:`disk_column` carries the weight above it (rel 1e-8) and no
+    tangential force: the floor and n - 1 grain-grain contacts, nothing else."""
+    pair, force, _ = sysm.contacts(active_only=True)
+    m = np.pi * np.asarray(r) ** 2
+    assert len(pair) == len(m)
+    for (i, j), (fn, ft) in zip(pair, force):
+        expected = m[i:].sum() if j < 0 else m[max(i, j):].sum()
+        assert fn == pytest.approx(expected, rel=1e-8)
+        assert abs(ft) < 1e-10 * expected
 
 
 def copy_system(sysm, smoke_config):

@@ -4,7 +4,7 @@ with it switched on, and the point of it -- no re-injected error, far fewer swee
 import numpy as np
 import pytest
 
-from simhelpers import copy_system, make_system
+from simhelpers import assert_column_forces, copy_system, disk_column, make_system
 from tiltpile import config
 from tiltpile.config import ConfigError
 from tiltpile.sim.solver import natural_residual
@@ -33,20 +33,10 @@ def test_gap_term_dead_zone(overlap, slop, b_expected):
 def test_column_forces_with_slop():
     """An 8-disk column settling under gravity: every normal force is the weight above, and no
     overlap exceeds the slop (it is not pushed out below it)."""
-    rng = np.random.default_rng(1)
-    r = rng.uniform(0.4, 0.6, size=8)
-    y = np.cumsum(2 * r) - r
-    sysm = make_system(r, np.column_stack([np.full(r.size, 50.0), y]), tol=1e-14,
-                       max_iter=100_000, slop=SLOP)
+    sysm, r = disk_column(slop=SLOP)
     rec = sysm.advance(50, 0.0, 0.0)
     assert rec.iterations.max() < 100_000
-    pair, force, _ = sysm.contacts(active_only=True)
-    m = np.pi * r**2
-    assert len(pair) == r.size
-    for (i, j), (fn, ft) in zip(pair, force):
-        expected = m[i:].sum() if j < 0 else m[max(i, j):].sum()
-        assert fn == pytest.approx(expected, rel=1e-8)
-        assert abs(ft) < 1e-10 * expected
+    assert_column_forces(sysm, r)
     assert rec.overlap.max() <= SLOP
 
 

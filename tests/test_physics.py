@@ -12,7 +12,7 @@ import math
 import numpy as np
 import pytest
 
-from simhelpers import copy_system, make_system
+from simhelpers import assert_column_forces, copy_system, disk_column, make_system
 from tiltpile.sim import protocol
 
 MU = 0.5
@@ -91,19 +91,9 @@ def test_head_on_collision_conserves_momentum_and_is_perfectly_inelastic():
 
 
 def test_column_normal_forces_equal_weight_above():
-    rng = np.random.default_rng(1)
-    r = rng.uniform(0.4, 0.6, size=8)
-    y = np.cumsum(2 * r) - r
-    sysm = make_system(r, np.column_stack([np.full(r.size, 50.0), y]), tol=1e-14, max_iter=100_000)
+    sysm, r = disk_column()
     sysm.advance(5, 0.0, 0.0)
-    pair, force, status = sysm.contacts(active_only=True)
-    m = np.pi * r**2
-    assert len(pair) == r.size  # floor + 7 grain-grain
-    for (i, j), (fn, ft) in zip(pair, force):
-        below = i if j < 0 else min(i, j)
-        expected = m[below:].sum() if j < 0 else m[max(i, j):].sum()
-        assert fn == pytest.approx(expected, rel=1e-8)
-        assert abs(ft) < 1e-10 * expected
+    assert_column_forces(sysm, r)
     assert np.all(np.abs(sysm.pos[:, 0] - 50.0) < 1e-12)
 
 

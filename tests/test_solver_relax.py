@@ -1,31 +1,21 @@
 """Over-relaxed NLGS (solver.relax): same solutions as the plain sweep, validated range."""
 
-import numpy as np
 import pytest
 
 from tiltpile import config
 from tiltpile.config import ConfigError
 from tiltpile.sim.solver import natural_residual
-from simhelpers import make_system
+from simhelpers import assert_column_forces, disk_column, make_system
 
 
 @pytest.mark.parametrize("relax", [1.0, 1.5, 1.8])
 def test_column_forces_with_over_relaxation(relax):
     """An 8-disk column: every normal force is the weight above, whatever omega."""
-    rng = np.random.default_rng(1)
-    r = rng.uniform(0.4, 0.6, size=8)
-    y = np.cumsum(2 * r) - r
-    sysm = make_system(r, np.column_stack([np.full(r.size, 50.0), y]), tol=1e-14, max_iter=100_000)
+    sysm, r = disk_column()
     sysm.params["relax"] = relax
     rec = sysm.advance(5, 0.0, 0.0)
     assert rec.iterations.max() < 100_000
-    pair, force, _ = sysm.contacts(active_only=True)
-    m = np.pi * r**2
-    assert len(pair) == r.size
-    for (i, j), (fn, ft) in zip(pair, force):
-        expected = m[i:].sum() if j < 0 else m[max(i, j):].sum()
-        assert fn == pytest.approx(expected, rel=1e-8)
-        assert abs(ft) < 1e-10 * expected
+    assert_column_forces(sysm, r)
     assert natural_residual(sysm.ci, sysm.cj, sysm.c, sysm.vel) < 1e-12
 
 
