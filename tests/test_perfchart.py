@@ -88,8 +88,10 @@ def test_tile_keeps_grains_and_ordering(chart):
 
     cfg = config.load("smoke", None, ["scene.n=20", "scene.box_length=6.0"])
     s = protocol.make_system(cfg, 0)
+    s.params.update(slop=3e-6, relax=1.3)  # not the defaults: the tiled pile must keep them
     t = tile(s, 3)
     assert t.n == 3 * s.n and t.params["box_length"] == 3 * s.params["box_length"]
+    assert dict(t.params, box_length=None) == dict(s.params, box_length=None)
     assert t.fixed.sum() == 3 * s.fixed.sum()
     # copy m of grain i is grain 3 i + m, shifted by m L
     assert np.allclose(t.pos[3 * 5 + 2], s.pos[5] + [2 * 6.0, 0.0])

@@ -58,12 +58,13 @@ import numpy as np
 import pandas as pd
 
 from tiltpile import config as cfgmod
+from tiltpile.analysis.observables import DEFAULT_PARAMS
 from tiltpile.sim import protocol, solver
 from tiltpile.sim.step import System
 
 SETTLE_STEPS = 50           # steps at theta = 0 at the point's own setting before the tilt
-CUTOFF = 0.02               # avalanche criterion on the lost-contact fraction
-DEFAULT_TOL, DEFAULT_DT = 1e-6, 0.01  # the simulator's defaults (config.SolverConfig)
+CUTOFF = DEFAULT_PARAMS["cutoff"]  # avalanche criterion on the lost-contact fraction
+DEFAULT_TOL, DEFAULT_DT = cfgmod.SolverConfig().tol, cfgmod.SolverConfig().dt  # the simulator's
 
 ACCURACY_COLUMNS = [
     "seed", "tol", "dt", "is_default", "is_reference", "n_grains", "contacts",
@@ -335,11 +336,12 @@ def tile(sysm: System, copies: int) -> System:
     odd = m % 2 == 1
     pos[odd, 0] = L - pos[odd, 0]
     pos[:, 0] += m * L
-    p = dict(sysm.params)
+    p = sysm.params
     out = System(sysm.radius[orig], sysm.fixed[orig], pos, sysm.vel[orig, 3], sysm.rng.copy(),
                  box_length=k * L, dt=p["dt"], alert=p["alert"], mu=p["mu"], mu_wall=p["mu_wall"],
-                 tol=p["tol"], max_iter=p["max_iter"], mode=p["mode"], relax=p["relax"],
-                 slop=p["slop"], gravity=p["gravity"])
+                 tol=p["tol"], max_iter=p["max_iter"], mode=p["mode"])
+    # every other parameter as the original's (listing them one by one once dropped the slop)
+    out.params = dict(p, box_length=k * L)
     out.rot[:] = np.where(odd, -1.0, 1.0) * sysm.rot[orig]
     vel = sysm.vel[orig, :3].copy()
     vel[odd, 0] *= -1.0
