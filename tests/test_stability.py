@@ -221,10 +221,11 @@ def test_iteration_cap_too_low_creeps_at_10_degrees(small_config, pile_state):
 
 def test_iteration_cap_far_too_low_stops(tmp_path, small_config, pile_state):
     """max_iter = 5 from the healthy deposited pile: every step hits the cap and the contacts
-    pump energy into the pile, which stops the run first (measured: after 36 frames). max_iter = 8
+    pump energy into the pile, which stops the run first (measured: after 37 frames). max_iter = 8
     from scratch: every step at solver.tol hits the cap, the frames in the kept .part file say
     so, and the cap-hit limit stops the run once CAP_HIT_MIN_STEPS steps are judged (at 7 the
-    deposition never comes to rest, which stops it too, at max_deposition_steps). Both errors name the limit and the fix. (The fraction is cumulative over the run,
+    deposition never comes to rest, which stops it too, at max_deposition_steps). Both errors
+    name the limit and the fix. (The fraction is cumulative over the run,
     so it stops only a run capped nearly everywhere: capped avalanches in healthy runs reach 68%.)
     """
     frames, err = _frames(_cfg("solver.max_iter=5"), pile_state)

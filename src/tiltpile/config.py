@@ -79,10 +79,11 @@ class SolverConfig:
     relax: float = _f(1.0, lo=0.0, lo_open=True, hi=2.0, hi_open=True,
                       doc="over-relaxation factor omega of the local solves (projected SOR; "
                           "1 = plain NLGS)")
-    # 1e-6 d: 17x fewer sweeps per step on the 1000-grain bench pile than the plain gap term (0)
-    # at equal contact-law residual, 30x more drift per degree of tilt (sim/step.py "Overlap
-    # slop"); 1e-6 d is 60x the overlaps an unconverged step leaves (~1.5e-8 d) and 1e-4 of the
-    # smallest length the analysis uses (lost_gap 1e-4 d).
+    # 1e-6 d: 16x fewer sweeps per step on the 1000-grain bench pile than the plain gap term (0)
+    # at equal natural residual, 37x more drift per degree of tilt (sim/step.py "Overlap slop");
+    # 1e-6 d is 10-70x the overlaps an unconverged step leaves (1.4-2e-8 d at tol 1e-6 on that
+    # pile, 9e-8 d at the smoke tol 1e-5) and 1e-2 of the smallest length the analysis uses
+    # (lost_gap 1e-4 d).
     overlap_slop: float = _f(1e-6, lo=0.0, hi=0.01,
                              doc="overlaps up to this [d] are not pushed out by the gap term")
     alert: float = _f(0.1, lo=0.0, lo_open=True, hi=1.0,

@@ -64,7 +64,8 @@ from tiltpile.sim.step import System
 
 SETTLE_STEPS = 50           # steps at theta = 0 at the point's own setting before the tilt
 CUTOFF = DEFAULT_PARAMS["cutoff"]  # avalanche criterion on the lost-contact fraction
-DEFAULT_TOL, DEFAULT_DT = cfgmod.SolverConfig().tol, cfgmod.SolverConfig().dt  # the simulator's
+# the simulator's defaults, highlighted in the chart
+DEFAULT_TOL, DEFAULT_DT = cfgmod.SolverConfig().tol, cfgmod.SolverConfig().dt
 
 ACCURACY_COLUMNS = [
     "seed", "tol", "dt", "is_default", "is_reference", "n_grains", "contacts",

@@ -29,8 +29,9 @@ from tiltpile.sim import solver
 n, steps = int(sys.argv[1]), int(sys.argv[2])
 every = int(sys.argv[3]) if len(sys.argv) > 3 else 1
 pile_over = [f"solver.overlap_slop={a.split('=')[1]}" for a in sys.argv[4:] if a.startswith("pile_slop=")]
-specs = [a for a in sys.argv[4:] if not a.startswith("pile_slop=")] or ["random:1", "forward:1", "alternating:1", "forward:1.3", "forward:1.5",
-                         "forward:1.7", "forward:1.8", "random:1.5", "random:1.7"]
+specs = [a for a in sys.argv[4:] if not a.startswith("pile_slop=")] or [
+    "random:1", "forward:1", "alternating:1", "forward:1.3", "forward:1.5", "forward:1.7",
+    "forward:1.8", "random:1.5", "random:1.7"]
 cfg = bench.bench_config(n, overrides=pile_over)
 s = bench.settled_pile(cfg, 0, progress=False)  # the cached pile of exactly this config
 dth = cfg.protocol.tilt_per_step_deg
@@ -71,4 +72,4 @@ for spec in specs:
     print(f"{spec:18s} {its.mean():8.1f} ({np.median(its):5.0f}) {1e3 * wall / steps:8.2f} {1e9 * wall / upd:7.2f} "
           f"{np.median(nat):8.1e} {np.median(dvm):8.1e} {np.median(dvr):8.1e} {np.median(dps):8.1e} "
           f"{int((its >= cfg.solver.max_iter).sum()):6d} "
-          f"{np.median(np.hypot(*(s.pos - pos0)[mob[: s.n]].T)) / (steps * dth):8.1e}", flush=True)
+          f"{np.median(np.hypot(*(s.pos - pos0)[mob].T)) / (steps * dth):8.1e}", flush=True)
