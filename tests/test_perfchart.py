@@ -12,8 +12,9 @@ import pandas as pd
 import pytest
 
 from tiltpile import cli
-from tiltpile.perfchart import (ACCURACY_COLUMNS, SCALING_COLUMNS, ChartSpec, grid_points,
-                                pareto_front, run_chart, tile)
+from tiltpile.perfchart import (ACCURACY_COLUMNS, DEFAULT_DT, DEFAULT_SLOP, DEFAULT_TOL,
+                                SCALING_COLUMNS, ChartSpec, grid_points, pareto_front, run_chart,
+                                tile)
 
 
 @pytest.fixture(scope="module")
@@ -46,7 +47,7 @@ def test_accuracy_table(chart):
     assert acc["is_default"].sum() == len(spec.seeds)
     ref = acc[acc["is_reference"]]
     assert np.all(ref[["z_shift", "n_m_shift"]].to_numpy() == 0)
-    for dt, d in acc.groupby("dt"):
+    for dt, d in acc[acc["slop"] == DEFAULT_SLOP].groupby("dt"):
         d = d.set_index("tol")
         loose, tight = d.loc[1e-2], d.loc[1e-6]
         # a tighter tolerance takes more sweeps and leaves a smaller residual ...
@@ -57,6 +58,12 @@ def test_accuracy_table(chart):
         assert loose["creep_mean"] > tight["creep_mean"]
     assert np.all(acc["max_overlap"] >= 0) and np.all(acc["steps"] > 0)
     assert np.all(acc["ms_per_deg"] > 0)
+    assert np.all(acc["drift_per_deg"] >= 0)
+    # the overlap slop, varied alone at the default tol and dt: the plain gap term (slop 0)
+    # re-injects the solver's error every step, so it takes more sweeps than the default slop
+    # (sim/step.py, "Overlap slop")
+    at = acc[(acc["tol"] == DEFAULT_TOL) & (acc["dt"] == DEFAULT_DT)].set_index("slop")
+    assert at.loc[0.0, "sweeps_mean"] > at.loc[DEFAULT_SLOP, "sweeps_mean"]
 
 
 def test_scaling_table(chart):
@@ -100,11 +107,15 @@ def test_tile_keeps_grains_and_ordering(chart):
 
 def test_grid_points():
     full = ChartSpec.full()
-    pts = grid_points(full)  # cross: every tol at dt 0.01, every dt at tol 1e-6
-    assert len(pts) == len(full.tols) + len(full.dts) - 1
-    assert (1e-6, 0.005) in pts and (1e-2, 0.01) in pts and (1e-2, 0.02) not in pts
+    pts = grid_points(full)  # cross: each of tol, dt, slop varied alone, the others at the default
+    assert len(pts) == len(full.tols) + len(full.dts) + len(full.slops) - 2
+    assert (DEFAULT_TOL, DEFAULT_DT, DEFAULT_SLOP) in pts
+    assert (1e-6, 0.005, DEFAULT_SLOP) in pts and (1e-2, 0.01, DEFAULT_SLOP) in pts
+    assert (1e-6, 0.01, 0.0) in pts
+    assert (1e-2, 0.02, DEFAULT_SLOP) not in pts and (1e-6, 0.005, 0.0) not in pts
     from dataclasses import replace
-    assert len(grid_points(replace(full, grid="full"))) == len(full.tols) * len(full.dts)
+    assert len(grid_points(replace(full, grid="full"))) == (
+        len(full.tols) * len(full.dts) * len(full.slops))
 
 
 def test_pareto_front():

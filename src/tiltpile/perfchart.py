@@ -6,8 +6,8 @@ temporary name, then renamed):
 1. Accuracy sweep (``accuracy.csv``, ``pareto.png``). One settled smoke pile per seed (250 grains,
    20 d box; ``protocol.deposited`` with the point-independent deposition at
    ``solver.deposition_tol``, settled at the tightest tol; cached under ``data/bench``). For every
-   (tol, dt) of the grid the pile is copied and
-   * settled ``SETTLE_STEPS`` steps at theta = 0 at the point's own tol and dt (as frame 0 of a run),
+   (tol, dt, overlap slop) point of the grid (``ChartSpec.grid``) the pile is copied and
+   * settled ``SETTLE_STEPS`` steps at theta = 0 at the point's own setting (as frame 0 of a run),
    * tilted at 0.001 deg per step (the paper's rate per step, so dt also sets the physical tilt
      rate 0.001 deg / dt) with a frame every 50 steps (0.05 deg, as in the paper), until the first
      avalanche onset (2% lost-contact criterion, ``analysis.segment_avalanches`` over the frames'
@@ -15,16 +15,17 @@ temporary name, then renamed):
      measured: wall time per degree of tilt (median over the frame chunks of the run, solver
      only, analysis excluded), NLGS sweeps per step (mean, median), the per-step final residual
      (median), steps at ``max_iter``, largest overlap, first onset theta_m, and <z>, <n_m> (bulk,
-     rattlers removed) averaged over the quiet frames before the onset;
+     rattlers removed) averaged over the quiet frames before the onset, and the drift: mean
+     displacement of the mobile grains per degree of tilt, median over those quiet frames;
    * separately, creep: a copy tilted to ``hold_deg`` in ``creep_tilt_steps`` equal steps, left
      ``creep_settle_time`` to take the last increment, then held for ``creep_hold_time``
      (physical time, so ``creep_hold_time / dt`` steps) at fixed gravity: mean and max
      displacement of the mobile grains over the hold.
-   Shifts (theta_m, <z>, <n_m>) are against the tightest setting (smallest tol, smallest dt) of
-   the same seed.
-2. Pareto plot: time per degree against each error measure (creep, |shift of theta_m|, final
-   residual), per (tol, dt) averaged over seeds; the default setting highlighted; the Pareto front
-   (points that no other point beats in both time and error) drawn.
+   Shifts (theta_m, <z>, <n_m>) are against the tightest setting (smallest tol, smallest dt, the
+   default slop) of the same seed.
+2. Pareto plot: time per degree against each error measure (creep, drift, |shift of theta_m|,
+   final residual), per (tol, dt, slop) averaged over seeds; the default setting highlighted; the
+   Pareto front (points that no other point beats in both time and error) drawn.
 3. Scaling (``scaling.csv``, ``scaling.png``). A pile of ``base_n`` grains at the paper's depth
    (the ``tiltpile bench`` pile: box 120 d * n / 4000, paper preset, cached under data/bench) is
    tiled k times side by side in a k-times wider box: grain (copy m, original id i) gets id
@@ -66,12 +67,13 @@ SETTLE_STEPS = 50           # steps at theta = 0 at the point's own setting befo
 CUTOFF = DEFAULT_PARAMS["cutoff"]  # avalanche criterion on the lost-contact fraction
 # the simulator's defaults, highlighted in the chart
 DEFAULT_TOL, DEFAULT_DT = cfgmod.SolverConfig().tol, cfgmod.SolverConfig().dt
+DEFAULT_SLOP = cfgmod.SolverConfig().overlap_slop
 
 ACCURACY_COLUMNS = [
-    "seed", "tol", "dt", "is_default", "is_reference", "n_grains", "contacts",
+    "seed", "tol", "dt", "slop", "is_default", "is_reference", "n_grains", "contacts",
     "ms_per_deg", "ms_per_deg_mean", "ms_per_step", "sweeps_mean", "sweeps_median", "cap_hit_fraction",
     "residual_median", "max_overlap", "theta_end", "steps", "wall_s",
-    "theta_m", "z_quiet", "n_m_quiet", "quiet_frames",
+    "theta_m", "z_quiet", "n_m_quiet", "quiet_frames", "drift_per_deg",
     "creep_mean", "creep_median", "creep_max", "creep_steps", "creep_max_overlap",
     "theta_m_shift", "z_shift", "n_m_shift", "resolution_warning",
 ]
@@ -89,9 +91,11 @@ class ChartSpec:
     seeds: tuple = (3, 1)
     tols: tuple = (1e-2, 1e-3, 1e-4, 1e-5, 1e-6)
     dts: tuple = (0.005, 0.01, 0.02)
-    # "full": every (tol, dt); "cross": every tol at DEFAULT_DT and every dt at DEFAULT_TOL (the
-    # full grid on 2 seeds took ~20 min for the accuracy part alone: points at tol <= 1e-5 tilt to
-    # 14-15 deg at ~500 sweeps per step, 90-100 s each)
+    # the overlap slop (solver.overlap_slop): 0 is the plain gap term b = g / dt
+    slops: tuple = (0.0, 1e-6, 1e-5)
+    # "full": every (tol, dt, slop); "cross": each of the three varied alone, the other two at
+    # their defaults (the full (tol, dt) grid on 2 seeds took ~20 min for the accuracy part
+    # alone: points at tol <= 1e-5 tilt to 14-15 deg at ~500 sweeps per step, 90-100 s each)
     grid: str = "cross"
     scene: tuple = ("scene.n=250", "scene.box_length=20.0")  # on the smoke preset
     max_iter: int = 1000
@@ -122,7 +126,7 @@ class ChartSpec:
 
     @classmethod
     def quick_spec(cls) -> "ChartSpec":
-        return cls(seeds=(3,), tols=(1e-2, 1e-4, 1e-6), dts=(0.01, 0.02),
+        return cls(seeds=(3,), tols=(1e-2, 1e-4, 1e-6), dts=(0.01, 0.02), slops=(0.0, 1e-6),
                    scene=("scene.n=60", "scene.box_length=8.0"), theta_cap=3.0, margin_deg=0.2,
                    hold_deg=5.0, creep_tilt_steps=500, creep_settle_time=2.0, creep_hold_time=2.0,
                    base_n=60, copies=(1, 2), tile_settle_steps=50, scaling_steps=10,
@@ -182,11 +186,11 @@ def accuracy_config(spec: ChartSpec) -> cfgmod.Config:
                                        f"protocol.frame_every={spec.frame_every}"])
 
 
-def grid_points(spec: ChartSpec) -> list[tuple[float, float]]:
-    """The (tol, dt) points of the sweep, by dt then tol (``ChartSpec.grid``)."""
-    pts = [(t, d) for d in spec.dts for t in spec.tols]
+def grid_points(spec: ChartSpec) -> list[tuple[float, float, float]]:
+    """The (tol, dt, slop) points of the sweep, by slop, dt, then tol (``ChartSpec.grid``)."""
+    pts = [(t, d, s) for s in spec.slops for d in spec.dts for t in spec.tols]
     if spec.grid == "cross":
-        pts = [(t, d) for t, d in pts if t == DEFAULT_TOL or d == DEFAULT_DT]
+        pts = [p for p in pts if sum(v != dv for v, dv in zip(p, (DEFAULT_TOL, DEFAULT_DT, DEFAULT_SLOP))) <= 1]
     elif spec.grid != "full":
         raise ValueError(f"grid must be 'full' or 'cross', got {spec.grid!r}")
     return pts
@@ -210,7 +214,8 @@ def _tilt_to_onset(sysm: System, cfg: cfgmod.Config, spec: ChartSpec) -> dict:
 
     row, prev = observe(0.0)
     thetas, lost, z, nm, nact = [0.0], [], [row["z"]], [row["n_m"]], [row["n_active"]]
-    chunk_wall, its, res, ovl = [], [], [], []
+    chunk_wall, its, res, ovl, disp = [], [], [], [], []
+    mob = ~sysm.fixed
     onset_frame = None
     total_chunks = int(round(spec.theta_cap / (dth * fe)))
     margin_chunks = max(1, int(round(spec.margin_deg / (dth * fe))))
@@ -218,9 +223,11 @@ def _tilt_to_onset(sysm: System, cfg: cfgmod.Config, spec: ChartSpec) -> dict:
     t_all = time.perf_counter()
     while k < total_chunks:
         theta0 = k * fe * dth
+        p0 = sysm.pos[mob]
         t0 = time.perf_counter()
         rec = sysm.advance(fe, theta0, dth)
         chunk_wall.append(time.perf_counter() - t0)
+        disp.append(float(np.hypot(*(sysm.pos[mob] - p0).T).mean()))
         its.append(rec.iterations)
         res.append(rec.residual)
         ovl.append(rec.overlap.max())
@@ -255,6 +262,10 @@ def _tilt_to_onset(sysm: System, cfg: cfgmod.Config, spec: ChartSpec) -> dict:
     its = np.concatenate(its)
     res = np.concatenate(res)
     per_deg = 1e3 * np.array(chunk_wall) / (fe * dth)
+    # drift: mean displacement of the mobile grains per degree, median over the quiet chunks (a
+    # chunk with a rearrangement is an outlier the median ignores; what is left is the creep the
+    # solver's residual error and the overlap slop allow while tilting)
+    drift = float(np.median(disp[:max(first, 1)])) / (fe * dth)
     return dict(ms_per_deg=float(np.median(per_deg)), ms_per_deg_mean=float(per_deg.mean()),
                 ms_per_step=1e3 * float(np.median(chunk_wall)) / fe,
                 sweeps_mean=float(its.mean()), sweeps_median=float(np.median(its)),
@@ -263,6 +274,7 @@ def _tilt_to_onset(sysm: System, cfg: cfgmod.Config, spec: ChartSpec) -> dict:
                 theta_end=float(thetas[-1]), steps=int(its.size), wall_s=wall,
                 theta_m=theta_m, z_quiet=float(np.nanmean(z[quiet])),
                 n_m_quiet=float(np.nanmean(nm[quiet])), quiet_frames=int(max(first, 1)),
+                drift_per_deg=drift,
                 resolution_warning=bool(resolution), contacts=int(np.median(nact)))
 
 
@@ -292,23 +304,25 @@ def accuracy_sweep(spec: ChartSpec, progress: bool = True) -> pd.DataFrame:
         pile = _pile(cfg, seed, spec.cache)
         _log(f"[accuracy] seed {seed}: pile of {int((~pile.fixed).sum())} grains ready in "
              f"{time.perf_counter() - t0:.1f} s", progress)
-        for tol, dt in grid_points(spec):
+        for tol, dt, slop in grid_points(spec):
             t1 = time.perf_counter()
             s = _copy(pile)
-            s.params.update(tol=float(tol), dt=float(dt), max_iter=spec.max_iter)
+            s.params.update(tol=float(tol), dt=float(dt), slop=float(slop), max_iter=spec.max_iter)
             s.advance(SETTLE_STEPS, 0.0, 0.0)
             c = _copy(s)
-            row = dict(seed=seed, tol=tol, dt=dt, n_grains=int((~s.fixed).sum()))
+            row = dict(seed=seed, tol=tol, dt=dt, slop=slop, n_grains=int((~s.fixed).sum()))
             row.update(_tilt_to_onset(s, cfg, spec))
             row.update(_creep(c, spec, dt))
             rows.append(row)
-            _log(f"[accuracy] seed {seed} tol {tol:g} dt {dt:g}: theta_m {row['theta_m']:.2f}, "
-                 f"{row['sweeps_mean']:.0f} sweeps/step, {row['ms_per_deg']:.0f} ms/deg, creep "
-                 f"{row['creep_mean']:.2g} d ({time.perf_counter() - t1:.0f} s)", progress)
+            _log(f"[accuracy] seed {seed} tol {tol:g} dt {dt:g} slop {slop:g}: theta_m "
+                 f"{row['theta_m']:.2f}, {row['sweeps_mean']:.0f} sweeps/step, {row['ms_per_deg']:.0f} "
+                 f"ms/deg, creep {row['creep_mean']:.2g} d, drift {row['drift_per_deg']:.2g} d/deg "
+                 f"({time.perf_counter() - t1:.0f} s)", progress)
     df = pd.DataFrame(rows)
     ref_tol, ref_dt = min(spec.tols), min(spec.dts)
-    df["is_reference"] = (df["tol"] == ref_tol) & (df["dt"] == ref_dt)
-    df["is_default"] = (df["tol"] == DEFAULT_TOL) & (df["dt"] == DEFAULT_DT)
+    df["is_reference"] = (df["tol"] == ref_tol) & (df["dt"] == ref_dt) & (df["slop"] == DEFAULT_SLOP)
+    df["is_default"] = ((df["tol"] == DEFAULT_TOL) & (df["dt"] == DEFAULT_DT)
+                        & (df["slop"] == DEFAULT_SLOP))
     for col, out in (("theta_m", "theta_m_shift"), ("z_quiet", "z_shift"), ("n_m_quiet", "n_m_shift")):
         ref = df[df["is_reference"]].set_index("seed")[col]
         df[out] = df[col] - df["seed"].map(ref)
@@ -481,16 +495,33 @@ def pareto_front(x: np.ndarray, y: np.ndarray) -> np.ndarray:
 
 
 def aggregate_points(acc: pd.DataFrame) -> pd.DataFrame:
-    """Per (tol, dt): median time per degree, mean error measures over seeds."""
+    """Per (tol, dt, slop): median time per degree, mean error measures over seeds."""
     g = acc.assign(abs_theta_shift=acc["theta_m_shift"].abs(), abs_z_shift=acc["z_shift"].abs(),
                    abs_n_m_shift=acc["n_m_shift"].abs())
-    return g.groupby(["tol", "dt"], as_index=False).agg(
+    return g.groupby(["tol", "dt", "slop"], as_index=False).agg(
         ms_per_deg=("ms_per_deg", "median"), sweeps_mean=("sweeps_mean", "mean"),
         creep_mean=("creep_mean", "mean"), creep_median=("creep_median", "mean"),
+        drift_per_deg=("drift_per_deg", "mean"),
         residual_median=("residual_median", "median"),
         abs_theta_shift=("abs_theta_shift", "mean"), abs_z_shift=("abs_z_shift", "mean"),
         abs_n_m_shift=("abs_n_m_shift", "mean"), max_overlap=("max_overlap", "max"),
         is_default=("is_default", "any"), is_reference=("is_reference", "any"))
+
+
+def _point_label(r) -> str:
+    """tol/dt, plus /s<slop> where the overlap slop is not the default."""
+    lab = f"{r['tol']:g}/{r['dt']:g}"
+    return lab if r["slop"] == DEFAULT_SLOP else f"{lab}/s{r['slop']:g}"
+
+
+def _with_slop(acc: pd.DataFrame) -> pd.DataFrame:
+    """An accuracy table written before the slop and drift columns existed (all its points ran
+    at the then default slop)."""
+    if "slop" not in acc:
+        acc = acc.assign(slop=DEFAULT_SLOP)
+    if "drift_per_deg" not in acc:
+        acc = acc.assign(drift_per_deg=np.nan)
+    return acc
 
 
 def plot_pareto(acc: pd.DataFrame, path: Path, hold_deg: float = 10.0,
@@ -501,9 +532,11 @@ def plot_pareto(acc: pd.DataFrame, path: Path, hold_deg: float = 10.0,
 
     agg = aggregate_points(acc)
     measures = [("creep_mean", f"creep held at {hold_deg:g} deg: mean displacement [d]", True),
+                ("drift_per_deg", "drift while tilting: mean displacement per degree [d]\n"
+                                  "(median over the quiet frames before the onset)", True),
                 ("abs_theta_shift", "|shift of first onset theta_m| [deg] (vs tightest)", False),
                 ("residual_median", "final NLGS residual (median per step)", True)]
-    fig, axes = plt.subplots(1, 3, figsize=(16, 5.2))
+    fig, axes = plt.subplots(1, 4, figsize=(21, 5.4))
     dts = sorted(agg["dt"].unique())
     markers = dict(zip(dts, "os^Dv"))
     cmap = plt.get_cmap("viridis")
@@ -522,10 +555,12 @@ def plot_pareto(acc: pd.DataFrame, path: Path, hold_deg: float = 10.0,
             x = np.where(np.isfinite(x) & (x <= 0), floor, x)
         for i, r in agg.iterrows():
             c = cmap(tols.index(r["tol"]) / max(1, len(tols) - 1))
-            ax.scatter(x[i], y[i], marker=markers[r["dt"]], color=c, s=60, zorder=3,
-                       edgecolor="k" if not r["is_default"] else "red",
-                       linewidth=0.5 if not r["is_default"] else 2.5)
-            ax.annotate(f"{r['tol']:g}/{r['dt']:g}", (x[i], y[i]), fontsize=7,
+            ax.scatter(x[i], y[i], marker=markers[r["dt"]], s=60, zorder=3,
+                       color=c if r["slop"] == DEFAULT_SLOP else "none",
+                       edgecolor=("red" if r["is_default"] else
+                                  "k" if r["slop"] == DEFAULT_SLOP else c),
+                       linewidth=2.5 if r["is_default"] or r["slop"] != DEFAULT_SLOP else 0.5)
+            ax.annotate(_point_label(r), (x[i], y[i]), fontsize=7,
                         xytext=(4, 3), textcoords="offset points")
         f = pareto_front(x, y)
         if f.size:
@@ -541,13 +576,15 @@ def plot_pareto(acc: pd.DataFrame, path: Path, hold_deg: float = 10.0,
     handles = [Line2D([], [], marker=markers[d], ls="", color="0.5", label=f"dt {d:g}") for d in dts]
     handles += [Line2D([], [], marker="o", ls="", color=cmap(i / max(1, len(tols) - 1)),
                        label=f"tol {t:g}") for i, t in enumerate(tols)]
-    handles += [Line2D([], [], marker="o", ls="", mfc="none", mec="red", mew=2.5,
-                       label=f"default tol {DEFAULT_TOL:g} / dt {DEFAULT_DT:g}"),
+    handles += [Line2D([], [], marker="o", ls="", mfc="none", mec="0.3", mew=2.5,
+                       label=f"hollow: overlap slop other than {DEFAULT_SLOP:g} (label s...)"),
+                Line2D([], [], marker="o", ls="", mfc="none", mec="red", mew=2.5,
+                       label=f"default tol {DEFAULT_TOL:g} / dt {DEFAULT_DT:g} / slop {DEFAULT_SLOP:g}"),
                 Line2D([], [], ls="--", color="0.4", label="Pareto front")]
     axes[0].legend(handles=handles, fontsize=7, loc="best")
     n = int(acc["n_grains"].iloc[0])
     fig.suptitle(f"Speed vs accuracy, {n}-grain pile, {tilt_per_step:g} deg/step, seeds "
-                 f"{', '.join(map(str, sorted(acc['seed'].unique())))} (labels tol/dt; errors "
+                 f"{', '.join(map(str, sorted(acc['seed'].unique())))} (labels tol/dt[/slop]; errors "
                  "averaged over seeds, 0 plotted at the axis floor)", fontsize=10)
     fig.tight_layout()
     _atomic_png(fig, path)
@@ -621,7 +658,8 @@ def run_chart(outdir, spec: ChartSpec | None = None, progress: bool = True,
     t_start = time.perf_counter()
     summary = dict(date=datetime.datetime.now().astimezone().isoformat(timespec="seconds"),
                    command=command or " ".join(sys.argv), machine=machine_info(),
-                   spec=asdict(spec), default=dict(tol=DEFAULT_TOL, dt=DEFAULT_DT), timings_s={},
+                   spec=asdict(spec), default=dict(tol=DEFAULT_TOL, dt=DEFAULT_DT, slop=DEFAULT_SLOP),
+                   timings_s={},
                    files=[])
     if "accuracy" in parts:
         t0 = time.perf_counter()
@@ -631,7 +669,7 @@ def run_chart(outdir, spec: ChartSpec | None = None, progress: bool = True,
         summary["timings_s"]["accuracy"] = time.perf_counter() - t0
         summary["files"] += ["accuracy.csv", "pareto.png"]
     elif (out / "accuracy.csv").exists():  # --parts scaling: summarise the accuracy run on disk
-        acc = pd.read_csv(out / "accuracy.csv")
+        acc = _with_slop(pd.read_csv(out / "accuracy.csv"))
         plot_pareto(acc, out / "pareto.png", spec.hold_deg, spec.tilt_per_step)
         summary["accuracy_from_file"] = True
         summary["files"] += ["accuracy.csv", "pareto.png"]
@@ -639,10 +677,11 @@ def run_chart(outdir, spec: ChartSpec | None = None, progress: bool = True,
         agg = aggregate_points(acc)
         summary["accuracy_points"] = json.loads(agg.to_json(orient="records"))
         for name, col in (("pareto_front_creep", "creep_mean"),
+                          ("pareto_front_drift", "drift_per_deg"),
                           ("pareto_front_theta_m", "abs_theta_shift"),
                           ("pareto_front_residual", "residual_median")):
             f = pareto_front(agg[col].to_numpy(float), agg["ms_per_deg"].to_numpy(float))
-            summary[name] = [f"{agg['tol'][i]:g}/{agg['dt'][i]:g}" for i in f]
+            summary[name] = [_point_label(agg.iloc[i]) for i in f]
     if "scaling" in parts:
         t0 = time.perf_counter()
         sc = scaling_sweep(spec, progress)
