@@ -19,14 +19,14 @@ import time
 from pathlib import Path
 
 import h5py
-import numpy as np
 import pytest
 
+from simhelpers import assert_same_run
 from tiltpile import config
 from tiltpile.config import ConfigError
 from tiltpile.ensemble import MANIFEST, add_parser, cmd_ensemble, main, run_ensemble, run_file
 from tiltpile.runner import simulate
-from tiltpile.store import open_run, part_path
+from tiltpile.store import checkpoint_path, open_run, part_path
 
 SMALL = ["scene.n=60", "scene.box_length=10.0", "protocol.theta_max_deg=2.0"]
 # a frame every step and a checkpoint every 5 frames: about 2 s of tilt to be killed in
@@ -50,18 +50,6 @@ def _snapshot(d: Path) -> dict:
 
 def _manifest(d: Path) -> dict:
     return json.loads((d / MANIFEST).read_text())
-
-
-def _assert_same_run(a: Path, b: Path) -> None:
-    with h5py.File(a, "r") as fa, h5py.File(b, "r") as fb:
-        # trajectories first (positions, contacts), derived per-frame columns after: a mismatch
-        # then says whether the run itself differs or only a diagnostic computed from it
-        for group in ("particles", "contacts", "frames"):
-            assert sorted(fa[group]) == sorted(fb[group])
-            for name in sorted(fa[group], key=lambda n: (n not in ("position", "velocity"), n)):
-                np.testing.assert_array_equal(fa[group][name][()], fb[group][name][()],
-                                              err_msg=f"{a.name}: {group}/{name}")
-        assert fa.attrs["seed"] == fb.attrs["seed"] and fa.attrs["config_hash"] == fb.attrs["config_hash"]
 
 
 @pytest.fixture(scope="module")
@@ -179,11 +167,11 @@ def _checkpointed_part(out: Path, min_frames: int) -> bool:
     """
     for part in out.glob("run_*.h5.part"):
         try:
+            with h5py.File(checkpoint_path(part.with_suffix("")), "r", locking=False) as g:
+                k = int(g.attrs["n_frames"])
             with h5py.File(part, "r", locking=False) as f:
-                if "checkpoint" in f:
-                    k = int(f["checkpoint"].attrs["n_frames"])
-                    if k >= min_frames and f["frames/step"].shape[0] == k:
-                        return True
+                if k >= min_frames and f["frames/step"].shape[0] == k:
+                    return True
         except Exception:
             pass
     return False
@@ -194,10 +182,9 @@ def _resumable(out: Path) -> dict[str, int]:
     found = {}
     for part in sorted(out.glob("run_*.h5.part")):
         try:
-            with h5py.File(part, "r") as f:
-                if "checkpoint" in f:
-                    found[str(int(f.attrs["seed"]))] = int(f["checkpoint"].attrs["n_frames"])
-        except OSError:  # killed before its first flush, or mid-write: the run starts afresh
+            with h5py.File(checkpoint_path(part.with_suffix("")), "r") as g:
+                found[str(int(g.attrs["seed"]))] = int(g.attrs["n_frames"])
+        except OSError:  # killed before its first checkpoint: the run starts afresh
             pass
     return found
 
@@ -232,14 +219,14 @@ def test_sigkill_then_rerun_is_bit_identical(tmp_path):
 
     m = run_ensemble(cfg, [0, 1], out, workers=2, progress=False)
     assert [m["runs"][s]["status"] for s in ("0", "1")] == ["done", "done"]
-    assert not list(out.glob("*.part"))
+    assert not list(out.glob("*.part")) and not list(out.glob("*.ckpt"))
     for seed, k in resumable.items():
         assert m["runs"][seed]["resumed_from_frame"] == k, f"seed {seed} did not resume from its checkpoint"
 
     ref = tmp_path / "reference"
     for seed in (0, 1):
         simulate(cfg, seed, run_file(ref, seed), progress=False, resume=False)
-        _assert_same_run(run_file(out, seed), run_file(ref, seed))
+        assert_same_run(run_file(out, seed), run_file(ref, seed))
 
 
 def test_config_mismatch_is_refused_and_touches_nothing(local_ensemble, tmp_path, capsys):

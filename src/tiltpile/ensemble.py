@@ -22,7 +22,8 @@ run's ``health`` summary with its ``warnings`` (``tiltpile.health``), ``numba_ca
 ``tiltpile_version`` and library ``versions``, and one entry per invocation in ``invocations``.
 
 Idempotent and resumable. A seed whose complete run file exists is skipped. Anything else is
-(re)submitted: an interrupted run resumes from the checkpoint in its ``.part`` file and ends
+(re)submitted: an interrupted run resumes from its checkpoint (``run_SSSS.h5.ckpt`` beside the
+``.part`` file) and ends
 bit-identical to an uninterrupted run (``runner``/``store``); a failed run is retried. A failure
 is recorded and the other runs go on; ``run_ensemble`` returns the manifest and the command exits
 with status 1 if any run failed. An existing ``DIR`` whose manifest (or any ``run_*.h5``) belongs to

@@ -33,11 +33,22 @@ Layout (F frames, N grains including the fixed bottom row, C contacts over all f
     /health               attrs (complete runs): the health summary of ``runner.simulate`` --
                           counts of flagged frames and steps, worst values, and ``warnings``
                           (JSON list of the warning texts, empty when healthy)
-    /checkpoint           (only while incomplete) the simulator's full state and the frame count
 
 The file is written as ``NAME.part`` and renamed to ``NAME`` when complete, so a file with the
 final name is always whole. An interrupted ``.part`` file resumes from its checkpoint
 (``RunWriter.resume``): frames past the checkpoint are dropped and recomputed.
+
+Checkpoints live in their own file, ``NAME.ckpt`` (HDF5: the simulator's full state as datasets,
+attrs ``scalars`` (JSON), ``n_frames``, ``config_hash``, ``seed`` and ``frames_digest``), written
+to a temporary name, synced and renamed, so a process killed at any moment leaves either the old
+checkpoint or the new one, never a mixture. (It used to be a group inside the ``.part`` file,
+deleted and rewritten at every checkpoint. HDF5 is not crash-safe: the new state's data could
+land in the space the old one freed while the file's last flushed metadata still described the
+old one, so a run killed during a checkpoint could resume from a state mixing two times and end
+differently -- seen once in ``test_sigkill_then_rerun_is_bit_identical``.) The ``.part`` file is
+flushed and synced before the checkpoint names its frame count; ``frames_digest`` (SHA-256 over
+every frame and contact row written up to the checkpoint, in order) is checked on resume, so a
+``.part`` file that lost or changed frames in a crash is started afresh rather than resumed.
 
 Files written before a column existed (``frames/energy_gain``, ``/health``) still open: the
 reader fills a missing per-frame column with NaN and ``Run.health`` is then empty.
@@ -45,6 +56,7 @@ reader fills a missing per-frame column with NaN and ``Run.health`` is then empt
 
 from __future__ import annotations
 
+import hashlib
 import json
 import os
 from pathlib import Path
@@ -70,6 +82,31 @@ def part_path(path: str | Path) -> Path:
     return path.with_name(path.name + ".part")
 
 
+def checkpoint_path(path: str | Path) -> Path:
+    path = Path(path)
+    return path.with_name(path.name + ".ckpt")
+
+
+def _fsync(path: Path) -> None:
+    """Push a file's written data to the disk (survives a reboot, not only a killed process)."""
+    fd = os.open(path, os.O_RDONLY)
+    try:
+        os.fsync(fd)
+    finally:
+        os.close(fd)
+
+
+def _digest_frame(h, scalars, arrays, contacts) -> None:
+    """Feed one frame, as stored (dataset dtypes), to the hash ``h`` in a fixed order."""
+    for name, dt in FRAME_SCALARS.items():
+        h.update(np.asarray(scalars[name], dt).tobytes())
+    for name in ("position", "velocity", "rotation", "omega"):
+        h.update(np.ascontiguousarray(arrays[name], np.float64).tobytes())
+    h.update(np.int64(contacts["pair"].shape[0]).tobytes())
+    for name, (dt, _) in CONTACT_SETS.items():
+        h.update(np.ascontiguousarray(contacts[name], dt).tobytes())
+
+
 class RunWriter:
     """Append frames and checkpoints to ``NAME.part``; ``finish`` renames it to ``NAME``."""
 
@@ -77,8 +114,12 @@ class RunWriter:
                  radius: np.ndarray, fixed: np.ndarray, box_length: float, jit: dict):
         self.path = Path(path)
         self.part = part_path(self.path)
+        self.ckpt = checkpoint_path(self.path)
         self.path.parent.mkdir(parents=True, exist_ok=True)
-        f = self.f = h5py.File(self.part, "w")
+        f = self.f = h5py.File(self.part, "w")  # fails here if another process holds the .part
+        # a checkpoint left by an earlier .part is not this one's (the digest would refuse it too)
+        self.ckpt.unlink(missing_ok=True)
+        self.digest = hashlib.sha256()
         f.attrs.update(tiltpile_version=tiltpile.__version__, seed=int(seed), config=config_json,
                        config_hash=config_hash, box_length=float(box_length), jit=json.dumps(jit),
                        complete=False)
@@ -129,6 +170,9 @@ class RunWriter:
         """Append one ``protocol.Frame``."""
         fr, c = self.f["frames"], self.f["contacts"]
         k = self.n_frames
+        _digest_frame(self.digest, {n: getattr(frame, n) for n in FRAME_SCALARS},
+                      {n: getattr(frame, n) for n in ("position", "velocity", "rotation", "omega")},
+                      {n: getattr(frame, n) for n in CONTACT_SETS})
         for name in FRAME_SCALARS:
             ds = fr[name]
             ds.resize((k + 1,))
@@ -148,24 +192,30 @@ class RunWriter:
         off[k + 1] = start + m
 
     def checkpoint(self, state: dict) -> None:
-        """Store the simulator state as of the frames written so far, and flush to disk."""
-        if "checkpoint" in self.f:
-            del self.f["checkpoint"]
-        g = self.f.create_group("checkpoint")
-        for key, value in state.items():
-            if key == "scalars":
-                g.attrs["scalars"] = json.dumps(value)
-            else:
-                g.create_dataset(key, data=value)
-        g.attrs["n_frames"] = self.n_frames
+        """Store the simulator state as of the frames written so far (``NAME.ckpt``, atomically).
+
+        The frames go to disk first; the checkpoint file is then written under a temporary name,
+        synced and renamed over the previous one (module docstring).
+        """
         self.f.flush()
+        _fsync(self.part)
+        tmp = self.ckpt.with_name(f".{self.ckpt.name}.tmp{os.getpid()}")
+        with h5py.File(tmp, "w") as g:
+            for key, value in state.items():
+                if key == "scalars":
+                    g.attrs["scalars"] = json.dumps(value)
+                else:
+                    g.create_dataset(key, data=value)
+            g.attrs.update(n_frames=self.n_frames, config_hash=self.f.attrs["config_hash"],
+                           seed=int(self.f.attrs["seed"]), frames_digest=self.digest.hexdigest())
+        _fsync(tmp)
+        os.replace(tmp, self.ckpt)
 
     def finish(self) -> Path:
-        if "checkpoint" in self.f:
-            del self.f["checkpoint"]
         self.f.attrs["complete"] = True
         self.f.close()
         os.replace(self.part, self.path)
+        self.ckpt.unlink(missing_ok=True)
         return self.path
 
     def close(self) -> None:
@@ -178,36 +228,58 @@ class RunWriter:
         """Reopen ``NAME.part`` at its last checkpoint; None if there is nothing usable to resume.
 
         Frames and contacts written after the checkpoint are truncated: the simulation redoes
-        them exactly. A ``.part`` of another configuration, or one that cannot be read (a process
-        killed while writing), is not resumed.
+        them exactly. A ``.part`` without its ``NAME.ckpt``, of another configuration or seed,
+        one that cannot be read (a process killed while writing), or whose frames up to the
+        checkpoint differ from what was written (``frames_digest``) is not resumed; the caller
+        then starts afresh, which removes both files.
         """
-        part = part_path(path)
-        if not part.exists():
+        part, ckpt = part_path(path), checkpoint_path(path)
+        if not part.exists() or not ckpt.exists():
+            return None
+        try:
+            with h5py.File(ckpt, "r") as g:
+                if g.attrs.get("config_hash") != config_hash:
+                    return None
+                state = {k: g[k][()] for k in g}
+                state["scalars"] = json.loads(g.attrs["scalars"])
+                k = int(g.attrs["n_frames"])
+                digest = str(g.attrs["frames_digest"])
+                seed = int(g.attrs["seed"])
+        except (OSError, RuntimeError, KeyError):
             return None
         try:
             f = h5py.File(part, "r+")
         except (OSError, RuntimeError):
             return None
         try:
-            if f.attrs.get("config_hash") != config_hash or "checkpoint" not in f:
+            fr, c = f["frames"], f["contacts"]
+            if (f.attrs.get("config_hash") != config_hash or int(f.attrs["seed"]) != seed
+                    or fr["step"].shape[0] < k or c["offset"].shape[0] < k + 1):
                 f.close()
                 return None
-            g = f["checkpoint"]
-            state = {k: g[k][()] for k in g}
-            state["scalars"] = json.loads(g.attrs["scalars"])
-            k = int(g.attrs["n_frames"])
-            fr, c = f["frames"], f["contacts"]
+            # the frames the checkpoint follows must be on disk exactly as they were written
+            h = hashlib.sha256()
+            off = c["offset"][: k + 1]
+            for i in range(k):
+                a, b = int(off[i]), int(off[i + 1])
+                _digest_frame(h, {n: fr[n][i] for n in FRAME_SCALARS},
+                              {n: fr[n][i] for n in ("position", "velocity", "rotation", "omega")},
+                              {n: c[n][a:b] for n in CONTACT_SETS})
+            if h.hexdigest() != digest:
+                f.close()
+                return None
             for name in fr:
                 fr[name].resize((k, *fr[name].shape[1:]))
             c["offset"].resize((k + 1,))
-            end = int(c["offset"][k])
+            end = int(off[k])
             for name in CONTACT_SETS:
                 c[name].resize((end, *c[name].shape[1:]))
-        except (OSError, RuntimeError, KeyError):
+        except (OSError, RuntimeError, KeyError, ValueError):
             f.close()
             return None
         writer = cls.__new__(cls)  # reopened, not created: skip __init__'s layout
-        writer.path, writer.part, writer.f = Path(path), part, f
+        writer.path, writer.part, writer.ckpt, writer.f = Path(path), part, ckpt, f
+        writer.digest = h
         return writer, state
 
 
