@@ -209,6 +209,7 @@ def test_run_killed_while_checkpointing_resumes_from_the_previous_checkpoint(tmp
     summary = simulate(cfg, 2, out, progress=False)
     assert summary["resumed_from_frame"] == k
     assert not part_path(out).exists() and not store.checkpoint_path(out).exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["ref.h5", "run.h5"]  # no temporaries
     assert_same_run(out, ref)
 
 

@@ -119,6 +119,7 @@ class RunWriter:
         f = self.f = h5py.File(self.part, "w")  # fails here if another process holds the .part
         # a checkpoint left by an earlier .part is not this one's (the digest would refuse it too)
         self.ckpt.unlink(missing_ok=True)
+        self._remove_temporaries()
         self.digest = hashlib.sha256()
         f.attrs.update(tiltpile_version=tiltpile.__version__, seed=int(seed), config=config_json,
                        config_hash=config_hash, box_length=float(box_length), jit=json.dumps(jit),
@@ -216,7 +217,13 @@ class RunWriter:
         self.f.close()
         os.replace(self.part, self.path)
         self.ckpt.unlink(missing_ok=True)
+        self._remove_temporaries()
         return self.path
+
+    def _remove_temporaries(self) -> None:
+        """Checkpoint files a killed process left half-written under their temporary names."""
+        for tmp in self.ckpt.parent.glob(f".{self.ckpt.name}.tmp*"):
+            tmp.unlink(missing_ok=True)
 
     def close(self) -> None:
         """Close without completing (the .part file stays for a resume)."""
