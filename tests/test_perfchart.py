@@ -75,6 +75,7 @@ def test_scaling_table(chart):
     # tol 0 never converges: every timed step makes exactly fixed_sweeps sweeps
     assert sorted(fixed["n"]) == [spec.base_n * k for k in spec.copies]
     assert np.all(fixed["sweeps_mean"] == spec.fixed_sweeps) and np.all(fixed["cap_hits"] == fixed["steps"])
+    assert np.all(fixed["steps"] == spec.fixed_steps * spec.fixed_rounds)
     assert summary["scaling_fit"]["fixed_sweeps"]["sweeps"] == spec.fixed_sweeps
     sc = sc[sc["fixed_sweeps"] == 0]
     fwd = sc[(sc["sweep"] == "forward") & (sc["relax"] == 1.0) & (sc["slop"] > 0)]

@@ -36,7 +36,9 @@ temporary name, then renamed):
    median ms per step, ns per contact update (time / (sweeps x candidate contacts)), sweeps per
    step. Forward relax 1 with the default overlap slop at every N; at ``variant_ns`` also, from
    the same state: random relax 1 with slop 0 (plain NLGS with the plain gap term, the reference
-   of issue 6), forward relax 1 with slop 0, and forward relax 1.5 (projected SOR).
+   of issue 6), forward relax 1 with slop 0, and forward relax 1.5 (projected SOR). Last, the
+   cost of a step at exactly ``fixed_sweeps`` sweeps (tol 0), ``fixed_rounds`` rounds of
+   ``fixed_steps`` steps, each round over every N in turn: median over all those steps.
 
 ``summary.json``: machine (``os.cpu_count()``, platform, numba version), date, command, timings
 of each part, the settings, and the fitted scaling (line through the origin, log-log slope).
@@ -117,6 +119,10 @@ class ChartSpec:
     variant_steps: int = 50
     fixed_sweeps: int = 100         # scaling at a fixed number of sweeps per step (tol 0)
     fixed_steps: int = 10
+    # rounds of the fixed-sweep timing, each over every N in turn, so that a slow spell of the
+    # shared machine falls on all N alike (one round of 10 steps per N gave per-grain spreads of
+    # 1.41-1.76x from chart to chart)
+    fixed_rounds: int = 5
     cache: str | None = "data/bench"
     quick: bool = False
 
@@ -131,7 +137,7 @@ class ChartSpec:
                    hold_deg=5.0, creep_tilt_steps=500, creep_settle_time=2.0, creep_hold_time=2.0,
                    base_n=60, copies=(1, 2), tile_settle_steps=50, scaling_steps=10,
                    scaling_steps_large=10, variant_ns=(120,), variant_steps=10, cache=None,
-                   fixed_sweeps=20, fixed_steps=3,
+                   fixed_sweeps=20, fixed_steps=3, fixed_rounds=2,
                    grid="full", quick=True)
 
 
@@ -366,7 +372,9 @@ def tile(sysm: System, copies: int) -> System:
     return out
 
 
-def _time_steps(sysm: System, steps: int, theta0: float, dth: float) -> dict:
+def _time_steps(sysm: System, steps: int, theta0: float, dth: float, walls=None) -> dict:
+    """Time ``steps`` single steps; ``walls`` (a list), if given, also receives each step's time."""
+    sink = walls
     walls, its, upd = [], [], 0
     for k in range(steps):
         t0 = time.perf_counter()
@@ -374,13 +382,15 @@ def _time_steps(sysm: System, steps: int, theta0: float, dth: float) -> dict:
         walls.append(time.perf_counter() - t0)
         its.append(int(rec.iterations[0]))
         upd += int(rec.iterations[0]) * sysm.ci.shape[0]
+    if sink is not None:
+        sink.extend(walls)
     walls, its = np.array(walls), np.array(its)
     return dict(steps=steps, contacts=int(sysm.ci.shape[0]),
                 active_contacts=int((sysm.c[:, 6] > 0).sum()),
                 ms_per_step=1e3 * float(np.median(walls)), ms_per_step_mean=1e3 * float(walls.mean()),
                 ns_per_update=1e9 * float(walls.sum()) / max(1, upd),
                 sweeps_mean=float(its.mean()), sweeps_median=float(np.median(its)),
-                cap_hits=int((its >= sysm.params["max_iter"]).sum()))
+                cap_hits=int((its >= sysm.params["max_iter"]).sum()), updates=upd)
 
 
 def scaling_sweep(spec: ChartSpec, progress: bool = True) -> pd.DataFrame:
@@ -394,7 +404,7 @@ def scaling_sweep(spec: ChartSpec, progress: bool = True) -> pd.DataFrame:
     _log(f"[scaling] base pile of {spec.base_n} grains ({cfg.scene.box_length:g} d box) ready in "
          f"{time.perf_counter() - t0:.1f} s", progress)
     dth = cfg.protocol.tilt_per_step_deg
-    rows = []
+    rows, fixed_jobs = [], []
     for k in spec.copies:
         t1 = time.perf_counter()
         s = tile(base, k)
@@ -422,18 +432,31 @@ def scaling_sweep(spec: ChartSpec, progress: bool = True) -> pd.DataFrame:
             _log(f"[scaling] n {n} {sweep} relax {relax:g} slop {sl:g}: {r['ms_per_step']:.1f} ms/step, "
                  f"{r['sweeps_mean']:.0f} sweeps/step, {r['ns_per_update']:.1f} ns/update, "
                  f"{r['contacts']} contacts", progress)
-        # the cost of a step at a fixed number of sweeps (tol 0: never converged, exactly
-        # fixed_sweeps sweeps): valid whether or not the tiled pile has settled, and the part of
-        # the cost per step that must be linear in N; sweeps per step are measured separately
-        s.restore(start)
-        s.params.update(mode=solver.FORWARD, relax=1.0, slop=slop, tol=0.0, max_iter=spec.fixed_sweeps)
+        fixed_jobs.append((k, n, s, start, settle))
+    # the cost of a step at a fixed number of sweeps (tol 0: never converged, exactly
+    # fixed_sweeps sweeps): valid whether or not the tiled pile has settled, and the part of the
+    # cost per step that must be linear in N; sweeps per step are measured above. fixed_rounds
+    # rounds, each timing every N in turn from its same start state; the median over all steps.
+    walls = {n: [] for _, n, *_ in fixed_jobs}
+    rounds = {n: [] for _, n, *_ in fixed_jobs}
+    for _ in range(spec.fixed_rounds):
+        for k, n, s, start, settle in fixed_jobs:
+            s.restore(start)
+            s.params.update(mode=solver.FORWARD, relax=1.0, slop=cfg.solver.overlap_slop, tol=0.0,
+                            max_iter=spec.fixed_sweeps)
+            rounds[n].append(_time_steps(s, spec.fixed_steps, 20 * dth, dth, walls[n]))
+    for k, n, s, start, settle in fixed_jobs:
+        w, rs = np.array(walls[n]), rounds[n]
         r = dict(n=n, copies=k, box_length=s.params["box_length"], sweep="forward", relax=1.0,
-                 slop=slop, tol=0.0, settle_s=settle, fixed_sweeps=spec.fixed_sweeps)
-        r.update(_time_steps(s, spec.fixed_steps, 20 * dth, dth))
-        s.params.update(tol=spec.scaling_tol, max_iter=cfg.solver.max_iter)
+                 slop=cfg.solver.overlap_slop, tol=0.0, settle_s=settle, fixed_sweeps=spec.fixed_sweeps)
+        r.update(rs[-1], steps=int(w.size), ms_per_step=1e3 * float(np.median(w)),
+                 ms_per_step_mean=1e3 * float(w.mean()),
+                 ns_per_update=1e9 * float(w.sum()) / max(1, sum(x["updates"] for x in rs)),
+                 sweeps_mean=float(np.mean([x["sweeps_mean"] for x in rs])),
+                 cap_hits=sum(x["cap_hits"] for x in rs))
         rows.append(r)
-        _log(f"[scaling] n {n} forward, {spec.fixed_sweeps} sweeps fixed: {r['ms_per_step']:.1f} ms/step, "
-             f"{r['ns_per_update']:.1f} ns/update", progress)
+        _log(f"[scaling] n {n} forward, {spec.fixed_sweeps} sweeps fixed ({spec.fixed_rounds} rounds): "
+             f"{r['ms_per_step']:.1f} ms/step, {r['ns_per_update']:.1f} ns/update", progress)
     return pd.DataFrame(rows)[SCALING_COLUMNS]
 
 
