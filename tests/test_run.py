@@ -10,7 +10,8 @@ import h5py
 import numpy as np
 import pytest
 
-from tiltpile import config
+from simhelpers import assert_same_run
+from tiltpile import config, store
 from tiltpile.analysis.contacts import lost_contacts
 from tiltpile.runner import simulate
 from tiltpile.sim import protocol
@@ -177,64 +178,71 @@ class _Killed(BaseException):
     """Stands for the process dying at a chosen point (not an Exception: nothing may catch it)."""
 
 
-def test_run_killed_while_checkpointing_resumes_from_the_previous_checkpoint(tmp_path, monkeypatch):
+@pytest.fixture(scope="module")
+def crash_reference(tmp_path_factory):
+    """The small run (seed 2) uninterrupted: what every interrupted and resumed copy must equal."""
+    cfg = config.load("smoke", overrides=CRASHABLE)
+    ref = tmp_path_factory.mktemp("crash") / "ref.h5"
+    simulate(cfg, 2, ref, progress=False, resume=False)
+    return cfg, ref
+
+
+def _run_until_killed(monkeypatch, cfg, out, owner, name, dying):
+    """Run seed 2 into ``out`` with ``owner.name`` replaced by ``dying(original)``, which raises
+    ``_Killed`` at its chosen call; the original is back in place afterwards."""
+    original = getattr(owner, name)
+    monkeypatch.setattr(owner, name, dying(original))
+    with pytest.raises(_Killed):
+        simulate(cfg, 2, out, progress=False)
+    monkeypatch.setattr(owner, name, original)
+
+
+def test_run_killed_while_checkpointing_resumes_from_the_previous_checkpoint(
+        tmp_path, monkeypatch, crash_reference):
     """Die after the new checkpoint is written but before it replaces the old one: the run resumes
     from the old checkpoint and ends bit-identical to an uninterrupted run. (The checkpoint used
     to live inside the .part file; a kill during its rewrite could leave a state mixing two
     checkpoints: ``store`` docstring.)"""
-    from simhelpers import assert_same_run
-    from tiltpile import store
-
-    cfg = config.load("smoke", overrides=CRASHABLE)
-    ref = tmp_path / "ref.h5"
-    simulate(cfg, 2, ref, progress=False, resume=False)
-
+    cfg, ref = crash_reference
     out = tmp_path / "run.h5"
-    replace, calls = store.os.replace, []
 
-    def dying_replace(src, dst):
-        if str(dst).endswith(".ckpt"):
-            calls.append(dst)
-            if len(calls) == 4:
-                raise _Killed
-        replace(src, dst)
+    def dying(replace):
+        calls = []
 
-    monkeypatch.setattr(store.os, "replace", dying_replace)
-    with pytest.raises(_Killed):
-        simulate(cfg, 2, out, progress=False)
-    monkeypatch.setattr(store.os, "replace", replace)
-    with h5py.File(store.checkpoint_path(out)) as g:
+        def dying_replace(src, dst):
+            if str(dst).endswith(".ckpt"):
+                calls.append(dst)
+                if len(calls) == 4:
+                    raise _Killed
+            replace(src, dst)
+        return dying_replace
+
+    _run_until_killed(monkeypatch, cfg, out, store.os, "replace", dying)
+    with h5py.File(checkpoint_path(out)) as g:
         k = int(g.attrs["n_frames"])  # the third checkpoint's frames
     assert part_path(out).exists() and k > 0
     summary = simulate(cfg, 2, out, progress=False)
     assert summary["resumed_from_frame"] == k
-    assert not part_path(out).exists() and not store.checkpoint_path(out).exists()
-    assert sorted(p.name for p in tmp_path.iterdir()) == ["ref.h5", "run.h5"]  # no temporaries
+    assert not part_path(out).exists() and not checkpoint_path(out).exists()
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run.h5"]  # no temporaries
     assert_same_run(out, ref)
 
 
-def test_part_file_that_changed_after_its_checkpoint_is_not_resumed(tmp_path, monkeypatch):
+def test_part_file_that_changed_after_its_checkpoint_is_not_resumed(
+        tmp_path, monkeypatch, crash_reference):
     """A .part whose frames no longer match the checkpoint's digest (a crash that lost or changed
     written frames) is started afresh, never resumed from; the fresh run is the reference run."""
-    from simhelpers import assert_same_run
-    from tiltpile import store
-
-    cfg = config.load("smoke", overrides=CRASHABLE)
-    ref = tmp_path / "ref.h5"
-    simulate(cfg, 2, ref, progress=False, resume=False)
-
+    cfg, ref = crash_reference
     out = tmp_path / "run.h5"
-    append = store.RunWriter.append
 
-    def dying_append(self, frame):
-        if self.n_frames == 12:
-            raise _Killed
-        append(self, frame)
+    def dying(append):
+        def dying_append(self, frame):
+            if self.n_frames == 12:
+                raise _Killed
+            append(self, frame)
+        return dying_append
 
-    monkeypatch.setattr(store.RunWriter, "append", dying_append)
-    with pytest.raises(_Killed):
-        simulate(cfg, 2, out, progress=False)
-    monkeypatch.setattr(store.RunWriter, "append", append)
+    _run_until_killed(monkeypatch, cfg, out, store.RunWriter, "append", dying)
     resumed = store.RunWriter.resume(out, cfg.hash())   # intact: resumable
     assert resumed is not None and resumed[0].n_frames > 0
     resumed[0].close()
@@ -243,5 +251,5 @@ def test_part_file_that_changed_after_its_checkpoint_is_not_resumed(tmp_path, mo
     assert store.RunWriter.resume(out, cfg.hash()) is None
     summary = simulate(cfg, 2, out, progress=False)
     assert summary["resumed_from_frame"] is None
-    assert not store.checkpoint_path(out).exists()
+    assert not checkpoint_path(out).exists()
     assert_same_run(out, ref)
