@@ -70,6 +70,7 @@ FRAME_SCALARS = {"step": np.int64, "time": np.float64, "theta_deg": np.float64,
                  "iterations": np.int64, "residual": np.float64, "ke": np.float64,
                  "max_overlap": np.float64, "max_iterations": np.int64, "cap_hits": np.int64,
                  "missed": np.int64, "energy_gain": np.float64}
+FRAME_ARRAYS = ("position", "velocity", "rotation", "omega")  # per grain, float64
 CONTACT_SETS = {"pair": (np.int32, (2,)), "force": (np.float64, (2,)), "status": (np.int8, ())}
 
 
@@ -96,15 +97,16 @@ def _fsync(path: Path) -> None:
         os.close(fd)
 
 
-def _digest_frame(h, scalars, arrays, contacts) -> None:
-    """Feed one frame, as stored (dataset dtypes), to the hash ``h`` in a fixed order."""
+def _digest_frame(h, get) -> None:
+    """Feed one frame, as stored (dataset dtypes), to the hash ``h`` in a fixed order;
+    ``get(name)`` gives its value for each name of FRAME_SCALARS, FRAME_ARRAYS and CONTACT_SETS."""
     for name, dt in FRAME_SCALARS.items():
-        h.update(np.asarray(scalars[name], dt).tobytes())
-    for name in ("position", "velocity", "rotation", "omega"):
-        h.update(np.ascontiguousarray(arrays[name], np.float64).tobytes())
-    h.update(np.int64(contacts["pair"].shape[0]).tobytes())
+        h.update(np.asarray(get(name), dt).tobytes())
+    for name in FRAME_ARRAYS:
+        h.update(np.ascontiguousarray(get(name), np.float64).tobytes())
+    h.update(np.int64(get("pair").shape[0]).tobytes())
     for name, (dt, _) in CONTACT_SETS.items():
-        h.update(np.ascontiguousarray(contacts[name], dt).tobytes())
+        h.update(np.ascontiguousarray(get(name), dt).tobytes())
 
 
 class RunWriter:
@@ -131,7 +133,7 @@ class RunWriter:
         fr = f.create_group("frames")
         for name, dt in FRAME_SCALARS.items():
             fr.create_dataset(name, (0,), dtype=dt, maxshape=(None,), chunks=(1024,))
-        for name, shape in (("position", (n, 2)), ("velocity", (n, 2)), ("rotation", (n,)), ("omega", (n,))):
+        for name, shape in zip(FRAME_ARRAYS, ((n, 2), (n, 2), (n,), (n,))):
             fr.create_dataset(name, (0, *shape), dtype=np.float64, maxshape=(None, *shape),
                               chunks=(1, *shape))
         c = f.create_group("contacts")
@@ -171,14 +173,12 @@ class RunWriter:
         """Append one ``protocol.Frame``."""
         fr, c = self.f["frames"], self.f["contacts"]
         k = self.n_frames
-        _digest_frame(self.digest, {n: getattr(frame, n) for n in FRAME_SCALARS},
-                      {n: getattr(frame, n) for n in ("position", "velocity", "rotation", "omega")},
-                      {n: getattr(frame, n) for n in CONTACT_SETS})
+        _digest_frame(self.digest, lambda name: getattr(frame, name))
         for name in FRAME_SCALARS:
             ds = fr[name]
             ds.resize((k + 1,))
             ds[k] = getattr(frame, name)
-        for name in ("position", "velocity", "rotation", "omega"):
+        for name in FRAME_ARRAYS:
             ds = fr[name]
             ds.resize((k + 1, *ds.shape[1:]))
             ds[k] = getattr(frame, name)
@@ -269,9 +269,7 @@ class RunWriter:
             off = c["offset"][: k + 1]
             for i in range(k):
                 a, b = int(off[i]), int(off[i + 1])
-                _digest_frame(h, {n: fr[n][i] for n in FRAME_SCALARS},
-                              {n: fr[n][i] for n in ("position", "velocity", "rotation", "omega")},
-                              {n: c[n][a:b] for n in CONTACT_SETS})
+                _digest_frame(h, lambda name: c[name][a:b] if name in CONTACT_SETS else fr[name][i])
             if h.hexdigest() != digest:
                 f.close()
                 return None
