@@ -372,9 +372,9 @@ def tile(sysm: System, copies: int) -> System:
     return out
 
 
-def _time_steps(sysm: System, steps: int, theta0: float, dth: float, walls=None) -> dict:
-    """Time ``steps`` single steps; ``walls`` (a list), if given, also receives each step's time."""
-    sink = walls
+def _time_steps(sysm: System, steps: int, theta0: float, dth: float) -> dict:
+    """Time ``steps`` single steps: the table's columns, plus ``walls`` (each step's seconds) and
+    ``updates`` (contact updates) for pooling several calls."""
     walls, its, upd = [], [], 0
     for k in range(steps):
         t0 = time.perf_counter()
@@ -382,15 +382,13 @@ def _time_steps(sysm: System, steps: int, theta0: float, dth: float, walls=None)
         walls.append(time.perf_counter() - t0)
         its.append(int(rec.iterations[0]))
         upd += int(rec.iterations[0]) * sysm.ci.shape[0]
-    if sink is not None:
-        sink.extend(walls)
     walls, its = np.array(walls), np.array(its)
     return dict(steps=steps, contacts=int(sysm.ci.shape[0]),
                 active_contacts=int((sysm.c[:, 6] > 0).sum()),
                 ms_per_step=1e3 * float(np.median(walls)), ms_per_step_mean=1e3 * float(walls.mean()),
                 ns_per_update=1e9 * float(walls.sum()) / max(1, upd),
                 sweeps_mean=float(its.mean()), sweeps_median=float(np.median(its)),
-                cap_hits=int((its >= sysm.params["max_iter"]).sum()), updates=upd)
+                cap_hits=int((its >= sysm.params["max_iter"]).sum()), updates=upd, walls=walls)
 
 
 def scaling_sweep(spec: ChartSpec, progress: bool = True) -> pd.DataFrame:
@@ -437,16 +435,16 @@ def scaling_sweep(spec: ChartSpec, progress: bool = True) -> pd.DataFrame:
     # fixed_sweeps sweeps): valid whether or not the tiled pile has settled, and the part of the
     # cost per step that must be linear in N; sweeps per step are measured above. fixed_rounds
     # rounds, each timing every N in turn from its same start state; the median over all steps.
-    walls = {n: [] for _, n, *_ in fixed_jobs}
     rounds = {n: [] for _, n, *_ in fixed_jobs}
     for _ in range(spec.fixed_rounds):
         for k, n, s, start, settle in fixed_jobs:
             s.restore(start)
             s.params.update(mode=solver.FORWARD, relax=1.0, slop=cfg.solver.overlap_slop, tol=0.0,
                             max_iter=spec.fixed_sweeps)
-            rounds[n].append(_time_steps(s, spec.fixed_steps, 20 * dth, dth, walls[n]))
+            rounds[n].append(_time_steps(s, spec.fixed_steps, 20 * dth, dth))
     for k, n, s, start, settle in fixed_jobs:
-        w, rs = np.array(walls[n]), rounds[n]
+        rs = rounds[n]
+        w = np.concatenate([x["walls"] for x in rs])
         r = dict(n=n, copies=k, box_length=s.params["box_length"], sweep="forward", relax=1.0,
                  slop=cfg.solver.overlap_slop, tol=0.0, settle_s=settle, fixed_sweeps=spec.fixed_sweeps)
         r.update(rs[-1], steps=int(w.size), ms_per_step=1e3 * float(np.median(w)),
