@@ -1,7 +1,8 @@
 """Microbench of the NLGS sweep: ns per contact update at a fixed sweep count, all in one process.
 
 Usage: python -m tiltpile.perf.solver_micro N SWEEPS REPEATS
-State: the bench pile of bench.settled_pile (cached, deposited if missing), tilted 20 steps. Also times the
+"interleaved" sweeps the contact list in the order of detect.interleave, as a run with that sweep
+stores it; the other orders sweep the list sorted by key. State: the bench pile of bench.settled_pile (cached, deposited if missing), tilted 20 steps. Also times the
 same kernel compiled with fastmath={"contract"} (FMA) and fastmath=True, which the project does
 not use (sim/jit.py).
 """
@@ -12,7 +13,7 @@ import numba
 import numpy as np
 
 from tiltpile import bench
-from tiltpile.sim import solver
+from tiltpile.sim import detect, solver
 
 n, sweeps, reps = int(sys.argv[1]), int(sys.argv[2]), int(sys.argv[3])
 cfg = bench.bench_config(n)
@@ -21,7 +22,10 @@ s.advance(20, 0.0, cfg.protocol.tilt_per_step_deg)
 C = s.ci.shape[0]
 fm = numba.njit(cache=False, nogil=True, fastmath={"contract"}, error_model="numpy")(solver.nlgs.py_func)
 fa = numba.njit(cache=False, nogil=True, fastmath=True, error_model="numpy")(solver.nlgs.py_func)
+o = detect.interleave(s.ci, s.cj, s.vel.shape[0])
+lists = {"key": (s.ci, s.cj, s.c, s.status), "interleaved": (s.ci[o], s.cj[o], s.c[o], s.status[o])}
 variants = {
+    "interleaved": (solver.INTERLEAVED, 1.0, solver.nlgs),
     "forward": (solver.FORWARD, 1.0, solver.nlgs),
     "alternating": (solver.ALTERNATING, 1.0, solver.nlgs),
     "random": (solver.RANDOM, 1.0, solver.nlgs),
@@ -34,9 +38,10 @@ res = {k: [] for k in variants}
 cpu = {k: [] for k in variants}
 for r in range(reps):
     for name, (mode, w, fn) in variants.items():
-        c = s.c.copy(); vel = s.vel.copy(); stt = s.status.copy(); rng = s.rng.copy()
+        ci, cj, c, stt = lists["interleaved" if mode == solver.INTERLEAVED else "key"]
+        c = c.copy(); vel = s.vel.copy(); stt = stt.copy(); rng = s.rng.copy()
         t0 = time.perf_counter(); c0 = time.thread_time()
-        fn(s.ci, s.cj, c, stt, vel, 0.0, sweeps, mode, rng, np.empty(C, np.int64), w)
+        fn(ci, cj, c, stt, vel, 0.0, sweeps, mode, rng, np.empty(C, np.int64), w)
         cpu[name].append(1e9 * (time.thread_time() - c0) / (sweeps * C))
         res[name].append(1e9 * (time.perf_counter() - t0) / (sweeps * C))
 for name, v in res.items():

@@ -21,9 +21,15 @@ in one step instead of drifting. Friction: |p_t| <= mu p_n, sticking (u_t = 0) i
 and sliding against u_t on its edge. Because W is diagonal the local problem is solved exactly
 in closed form: p_n first, then p_t as the sticking value clipped to the cone.
 
-Sweep orders (``mode``): 0 forward; 1 alternating forward/backward over contacts sorted by
-particle id (roughly bottom-up, then top-down: a symmetric Gauss-Seidel); 2 random order,
-reshuffled every sweep (Unger & Kertesz, PRE 67, 2003; Jean 1999), from a checkpointable RNG.
+Sweep orders (``mode``): 0 forward, over the contacts sorted by key (particle id of grain i,
+then j; grains are numbered bottom-up, so the sweep runs roughly bottom-up); 1 alternating
+forward/backward in that order (a symmetric Gauss-Seidel); 2 random order, reshuffled every
+sweep (Unger & Kertesz, PRE 67, 2003; Jean 1999), from a checkpointable RNG; 3 interleaved:
+forward over the list in the order of ``detect.interleave``, stored so at every rebuild, which
+keeps each contact within a few places of its key order but puts no body twice within 8
+consecutive places. Forward and interleaved sweep the stored list (``_sweep_stored``), which is
+what makes the interleaved order pay: in key order consecutive updates share grain i and wait
+for each other (module ``tiltpile.perf.solver_micro`` measures both).
 
 Over-relaxation (``relax`` = omega in (0, 2), projected SOR): each local solve moves the impulse
 omega times the plain correction, p_n <- max(0, p_n - omega W_nn^-1 (u_n + b)), then
@@ -54,8 +60,9 @@ import numpy as np
 from tiltpile.sim.jit import njit
 from tiltpile.sim.rng import shuffle
 
-FORWARD, ALTERNATING, RANDOM = 0, 1, 2
-SWEEPS = {"forward": FORWARD, "alternating": ALTERNATING, "random": RANDOM}
+FORWARD, ALTERNATING, RANDOM, INTERLEAVED = 0, 1, 2, 3
+_U = np.uint64  # unsigned indices: numba emits no negative-index wrap-around for them
+SWEEPS = {"forward": FORWARD, "alternating": ALTERNATING, "random": RANDOM, "interleaved": INTERLEAVED}
 
 OPEN, STICK, SLIDE = 0, 1, 2
 
@@ -85,69 +92,32 @@ def _push(vel, i, j, nx, ny, dpn, dpt):
 def nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm, relax=1.0):
     """Sweep until the relative impulse change is <= tol or ``max_iter`` sweeps.
 
-    ``perm`` (C,) int64 is scratch for the random order. Returns (sweeps, residual).
-    The local solve is written out in the loop body: an inlined helper returning a tuple of
-    sums made the sweep 2-3x slower (43 vs ~20 ns per update); ``_push`` returns nothing and
-    costs nothing measurable.
+    ``perm`` (C,) int64 is scratch for the random and alternating orders. Returns (sweeps, residual). ``status``
+    is set from the final impulses (``set_status``).
     """
     nc = ci.shape[0]
     if nc == 0:
         return 0, 0.0
-    if mode == RANDOM:
-        for k in range(nc):
-            perm[k] = k
+    cf = c.reshape(c.size)
+    vf = vel.reshape(vel.size)
     res = 0.0
     it = 0
     while it < max_iter:
-        num = 0.0
-        den = 0.0
-        if mode == RANDOM:
-            shuffle(rng_state, perm[:nc])
-        backward = mode == ALTERNATING and it % 2 == 1
         # the first sweep is plain: an isolated contact is solved exactly by it, and over-relaxing
         # a contact whose local solve is already exact only makes it oscillate (x (1 - omega))
         w = 1.0 if it == 0 else relax
-        for k in range(nc):
-            if mode == RANDOM:
-                a = perm[k]
-            elif backward:
-                a = nc - 1 - k
-            else:
-                a = k
-            i = ci[a]
-            j = cj[a]
-            nx = c[a, 0]
-            ny = c[a, 1]
-            pn = c[a, 6]
-            pt = c[a, 7]
-            dvx = vel[i, 0] - vel[j, 0]
-            dvy = vel[i, 1] - vel[j, 1]
-            un = dvx * nx + dvy * ny
-            ut = -dvx * ny + dvy * nx - (vel[i, 2] + vel[j, 2])
-            # u without this contact's own impulse is u - W p; the local solution in closed form:
-            pn_new = pn - (un + c[a, 2]) * c[a, 4] * w
-            if pn_new <= 0.0:
-                pn_new = 0.0
-                pt_new = 0.0
-                st = OPEN
-            else:
-                pt_new = pt - ut * c[a, 5] * w
-                lim = c[a, 3] * pn_new
-                st = STICK
-                if pt_new > lim:
-                    pt_new = lim
-                    st = SLIDE
-                elif pt_new < -lim:
-                    pt_new = -lim
-                    st = SLIDE
-            status[a] = st
-            dpn = pn_new - pn
-            dpt = pt_new - pt
-            _push(vel, i, j, nx, ny, dpn, dpt)
-            c[a, 6] = pn_new
-            c[a, 7] = pt_new
-            num += dpn * dpn + dpt * dpt
-            den += pn_new * pn_new + pt_new * pt_new
+        if mode == RANDOM:
+            if it == 0:
+                for k in range(nc):
+                    perm[k] = k
+            shuffle(rng_state, perm[:nc])
+            num, den = _sweep_perm(ci, cj, c, vel, perm, w)
+        elif mode == ALTERNATING:
+            for k in range(nc):
+                perm[k] = nc - 1 - k if it % 2 == 1 else k
+            num, den = _sweep_perm(ci, cj, c, vel, perm, w)
+        else:
+            num, den = _sweep_stored(ci, cj, cf, vf, w)
         it += 1
         if den > 0.0:
             res = math.sqrt(num / den) / w
@@ -155,7 +125,103 @@ def nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm, relax=1.0
             res = 0.0 if num == 0.0 else np.inf
         if res <= tol:
             break
+    set_status(c, status)
     return it, res
+
+
+@njit
+def _sweep_stored(ci, cj, cf, vf, w):
+    """One sweep over the contacts in their stored order (forward and interleaved sweeps).
+
+    Returns (sum |dp|^2, sum |p|^2). Written for the compiler, measured with
+    ``python -m tiltpile.perf.solver_micro``: the flat views cf = c.ravel(), vf = vel.ravel()
+    with unsigned indices carry no negative-index wrap-around code, and the clip to the cone is
+    min/max instead of branches. About 75 instructions per update; the whole update is then one
+    ~50-cycle chain of dependent operations from reading vel[i] to writing it, so the sweep is
+    as fast as the *order* lets consecutive updates overlap (``interleave``).
+    """
+    nc = _U(ci.shape[0])
+    num = 0.0
+    den = 0.0
+    for a in range(nc):
+        i = _U(4) * _U(ci[a])
+        j = _U(4) * _U(cj[a])
+        b = _U(8) * a
+        nx = cf[b]
+        ny = cf[b + _U(1)]
+        pn = cf[b + _U(6)]
+        pt = cf[b + _U(7)]
+        dvx = vf[i] - vf[j]
+        dvy = vf[i + _U(1)] - vf[j + _U(1)]
+        un = dvx * nx + dvy * ny
+        ut = -dvx * ny + dvy * nx - (vf[i + _U(2)] + vf[j + _U(2)])
+        # u without this contact's own impulse is u - W p; the local solution in closed form,
+        # p_n projected on p_n >= 0, then p_t on the cone |p_t| <= mu p_n (open: p_t = 0)
+        pn_new = max(0.0, pn - (un + cf[b + _U(2)]) * (cf[b + _U(4)] * w))
+        lim = cf[b + _U(3)] * pn_new
+        pt_new = min(lim, max(-lim, pt - ut * (cf[b + _U(5)] * w)))
+        dpn = pn_new - pn
+        dpt = pt_new - pt
+        px = dpn * nx - dpt * ny
+        py = dpn * ny + dpt * nx
+        imi = vf[i + _U(3)]
+        imj = vf[j + _U(3)]
+        vf[i] += imi * px
+        vf[i + _U(1)] += imi * py
+        vf[i + _U(2)] -= 2.0 * imi * dpt
+        vf[j] -= imj * px
+        vf[j + _U(1)] -= imj * py
+        vf[j + _U(2)] -= 2.0 * imj * dpt
+        cf[b + _U(6)] = pn_new
+        cf[b + _U(7)] = pt_new
+        num += dpn * dpn + dpt * dpt
+        den += pn_new * pn_new + pt_new * pt_new
+    return num, den
+
+
+@njit
+def _sweep_perm(ci, cj, c, vel, perm, w):
+    """One sweep in the order ``perm`` (random and alternating sweeps): the same local solve as
+    ``_sweep_stored``, on the 2D arrays."""
+    num = 0.0
+    den = 0.0
+    for k in range(ci.shape[0]):
+        a = perm[k]
+        i = ci[a]
+        j = cj[a]
+        nx = c[a, 0]
+        ny = c[a, 1]
+        pn = c[a, 6]
+        pt = c[a, 7]
+        dvx = vel[i, 0] - vel[j, 0]
+        dvy = vel[i, 1] - vel[j, 1]
+        un = dvx * nx + dvy * ny
+        ut = -dvx * ny + dvy * nx - (vel[i, 2] + vel[j, 2])
+        pn_new = max(0.0, pn - (un + c[a, 2]) * (c[a, 4] * w))
+        lim = c[a, 3] * pn_new
+        pt_new = min(lim, max(-lim, pt - ut * (c[a, 5] * w)))
+        dpn = pn_new - pn
+        dpt = pt_new - pt
+        _push(vel, i, j, nx, ny, dpn, dpt)
+        c[a, 6] = pn_new
+        c[a, 7] = pt_new
+        num += dpn * dpn + dpt * dpt
+        den += pn_new * pn_new + pt_new * pt_new
+    return num, den
+
+
+@njit
+def set_status(c, status):
+    """Contact states from the impulses: open (p_n = 0), sliding (|p_t| = mu p_n: the local
+    solve clipped p_t to exactly this product), else sticking."""
+    for a in range(c.shape[0]):
+        pn = c[a, 6]
+        if pn == 0.0:
+            status[a] = OPEN
+        elif abs(c[a, 7]) == c[a, 3] * pn:
+            status[a] = SLIDE
+        else:
+            status[a] = STICK
 
 
 def empty_contacts():

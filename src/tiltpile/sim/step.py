@@ -51,9 +51,9 @@ import math
 
 import numpy as np
 
-from tiltpile.sim.detect import build_candidates, carry_impulses
+from tiltpile.sim.detect import build_candidates, carry_impulses, interleave
 from tiltpile.sim.jit import njit
-from tiltpile.sim.solver import apply_impulses, nlgs
+from tiltpile.sim.solver import INTERLEAVED, apply_impulses, nlgs
 
 
 @njit
@@ -123,6 +123,9 @@ def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state
                 reach = r
         if not reach < half:
             nci, ncj, nkey = build_candidates(pos, radius, fixed, box_length, alert)
+            if mode == INTERLEAVED:
+                order = interleave(nci, ncj, n + 3)
+                nci, ncj, nkey = nci[order], ncj[order], nkey[order]
             nc = np.zeros((nci.shape[0], 8))
             carry_impulses(key, c[:, 6:8], nkey, nc[:, 6:8])
             ci, cj, key, c = nci, ncj, nkey, nc
