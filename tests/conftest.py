@@ -6,11 +6,13 @@ import pytest
 
 from tiltpile import config
 from tiltpile.sim import protocol
+from simhelpers import CALIBRATED
 
 
 @pytest.fixture(scope="session")
 def smoke_config():
-    return config.load("smoke")
+    """The smoke preset with the sweep the pile-specific tests were measured with (CALIBRATED)."""
+    return config.load("smoke", None, list(CALIBRATED))
 
 
 @pytest.fixture(scope="session")

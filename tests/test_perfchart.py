@@ -50,8 +50,9 @@ def test_accuracy_table(chart):
     for dt, d in acc[acc["slop"] == DEFAULT_SLOP].groupby("dt"):
         d = d.set_index("tol")
         loose, tight = d.loc[1e-2], d.loc[1e-6]
-        # a tighter tolerance takes more sweeps and leaves a smaller residual ...
-        assert tight["sweeps_mean"] > loose["sweeps_mean"]
+        # a tighter tolerance leaves a smaller residual ... (not always at more sweeps per step:
+        # a loose solve can set the pile moving, and a moving pile costs more sweeps per step than
+        # a quiet one; measured at dt 0.02, seed 3: 18.9, 13.8, 7.7 sweeps at tol 1e-2, 1e-4, 1e-6)
         assert tight["residual_median"] < loose["residual_median"]
         assert tight["residual_median"] <= 1e-6 * 1.0001 or tight["cap_hit_fraction"] > 0
         # ... and the pile held at a fixed angle creeps less
@@ -78,9 +79,11 @@ def test_scaling_table(chart):
     assert np.all(fixed["steps"] == spec.fixed_steps * spec.fixed_rounds)
     assert summary["scaling_fit"]["fixed_sweeps"]["sweeps"] == spec.fixed_sweeps
     sc = sc[sc["fixed_sweeps"] == 0]
-    fwd = sc[(sc["sweep"] == "forward") & (sc["relax"] == 1.0) & (sc["slop"] > 0)]
+    # the default sweep (interleaved) at every N, the other sweeps at the variant N
+    assert summary["scaling_fit"]["sweep"] == "interleaved" and set(fixed["sweep"]) == {"interleaved"}
+    fwd = sc[(sc["sweep"] == "interleaved") & (sc["relax"] == 1.0) & (sc["slop"] > 0)]
     assert sorted(fwd["n"]) == [spec.base_n * k for k in spec.copies]
-    assert {("random", 1.0, 0.0), ("forward", 1.0, 0.0), ("forward", 1.5, 1e-6)} <= set(
+    assert {("random", 1.0, 0.0), ("forward", 1.0, 1e-6), ("forward", 1.0, 0.0), ("forward", 1.5, 1e-6)} <= set(
         zip(sc["sweep"], sc["relax"], sc["slop"]))
     # contacts grow with the width of the pile, the box is k times wider
     fwd = fwd.sort_values("n")

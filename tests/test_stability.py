@@ -36,13 +36,14 @@ from tiltpile.runner import simulate
 from tiltpile.sim import protocol
 from tiltpile.sim.protocol import SimulationError
 from tiltpile.store import open_run, part_path
+from simhelpers import CALIBRATED
 
 SMALL = ["scene.n=60", "scene.box_length=10.0", "protocol.theta_max_deg=10.0"]
 H = config.HealthConfig()
 
 
 def _cfg(*extra):
-    return config.load("smoke", overrides=[*SMALL, *extra])
+    return config.load("smoke", overrides=[*CALIBRATED, *SMALL, *extra])
 
 
 @pytest.fixture(scope="module")
@@ -231,7 +232,7 @@ def test_iteration_cap_in_an_avalanche():
     (At the paper scale tol is not reached even at 20 000 sweeps while the pile flows, and
     1000, 2000 and 20 000 give the same kinetic energy and displacement to a few per cent:
     README, "What still costs".)"""
-    cfg = config.load("smoke", overrides=["protocol.checkpoint_every=1"])
+    cfg = config.load("smoke", overrides=[*CALIBRATED, "protocol.checkpoint_every=1"])
     n = cfg.scene.n
     state, last = None, None
     for ev in protocol.run(cfg, 1):

@@ -116,3 +116,25 @@ def test_every_sweep_sets_status_from_impulses(settled_pile, smoke_config, sweep
     solver.set_status(s.c, expect)
     assert np.array_equal(s.status, expect)
     assert np.array_equal(s.status == solver.OPEN, s.c[:, 6] == 0)
+
+
+def test_a_mode_change_reorders_the_stored_list(settled_pile, smoke_config):
+    """Switching the sweep in ``params`` takes effect at the next ``advance``: the list is stored
+    interleaved for the interleaved sweep and sorted by key for the others, pairs and impulses
+    kept; a list already in order is left as it is (so a restored run continues unchanged)."""
+    s = copy_system(settled_pile, smoke_config)
+    s.params.update(mode=solver.FORWARD)
+    s.advance(1, 0.0, 0.0)
+    assert np.all(np.diff(s.key) > 0)
+    pairs = dict(zip(s.key, map(tuple, s.c[:, 6:8])))
+    s.params.update(mode=solver.INTERLEAVED)
+    s._order_contacts()
+    order = detect.interleave(*(np.sort(s.key) // (s.n + 3), np.sort(s.key) % (s.n + 3)), s.n + 3)
+    np.testing.assert_array_equal(s.key, np.sort(s.key)[order])
+    assert dict(zip(s.key, map(tuple, s.c[:, 6:8]))) == pairs
+    before = s.key.copy()
+    s._order_contacts()
+    np.testing.assert_array_equal(s.key, before)
+    s.params.update(mode=solver.RANDOM)
+    s._order_contacts()
+    assert np.all(np.diff(s.key) > 0)

@@ -29,15 +29,17 @@ temporary name, then renamed):
 3. Scaling (``scaling.csv``, ``scaling.png``). A pile of ``base_n`` grains at the paper's depth
    (the ``tiltpile bench`` pile: box 120 d * n / 4000, paper preset, cached under data/bench) is
    tiled k times side by side in a k-times wider box: grain (copy m, original id i) gets id
-   i * k + m, so ids stay ordered bottom-up as in a deposited pile (the forward sweep relies on
-   it), fixed bottom rows included; the inner walls disappear. The tiled pile settles
+   i * k + m, so ids stay ordered bottom-up as in a deposited pile (the forward and interleaved
+   sweeps rely on it), fixed bottom rows included; the inner walls disappear. The tiled pile settles
    ``tile_settle_steps`` steps at tol 1e-4 at theta = 0 (the seams relax), then 20 untimed tilt
    steps at the timed tolerance, then ``scaling_steps`` timed tilt steps, each timed alone:
    median ms per step, ns per contact update (time / (sweeps x candidate contacts)), sweeps per
-   step. Forward relax 1 with the default overlap slop at every N; at ``variant_ns`` also, from
-   the same state: random relax 1 with slop 0 (plain NLGS with the plain gap term, the reference
-   of issue 6), forward relax 1 with slop 0, and forward relax 1.5 (projected SOR). Last, the
-   cost of a step at exactly ``fixed_sweeps`` sweeps (tol 0), ``fixed_rounds`` rounds of
+   step. The default sweep (``solver.sweep``, interleaved) relax 1 with the default overlap slop
+   at every N; at ``variant_ns`` also, from the same state: forward relax 1 with the slop (the
+   key order, the default before the interleaved sweep), random relax 1 with slop 0 (plain NLGS
+   with the plain gap term, the reference of issue 6), forward relax 1 with slop 0, and forward
+   relax 1.5 (projected SOR). Last, the cost of a step of the default sweep at exactly
+   ``fixed_sweeps`` sweeps (tol 0), ``fixed_rounds`` rounds of
    ``fixed_steps`` steps, each round over every N in turn: median over all those steps.
 
 ``summary.json``: machine (``os.cpu_count()``, platform, numba version), date, command, timings
@@ -414,9 +416,11 @@ def scaling_sweep(spec: ChartSpec, progress: bool = True) -> pd.DataFrame:
         settle = time.perf_counter() - t1
         start = s.state()
         slop = cfg.solver.overlap_slop
-        variants = [("forward", 1.0, slop)]
+        sweep0 = cfg.solver.sweep  # the default sweep: the scaling line, and the fixed sweeps
+        variants = [(sweep0, 1.0, slop)]
         if n in spec.variant_ns:
-            variants += [("random", 1.0, 0.0), ("forward", 1.0, 0.0), ("forward", 1.5, slop)]
+            variants += [v for v in (("forward", 1.0, slop), ("random", 1.0, 0.0), ("forward", 1.0, 0.0),
+                                     ("forward", 1.5, slop)) if v != variants[0]]
         for sweep, relax, sl in variants:
             s.restore(start)
             s.params.update(mode=solver.SWEEPS[sweep], relax=relax, slop=sl)
@@ -439,13 +443,13 @@ def scaling_sweep(spec: ChartSpec, progress: bool = True) -> pd.DataFrame:
     for _ in range(spec.fixed_rounds):
         for k, n, s, start, settle in fixed_jobs:
             s.restore(start)
-            s.params.update(mode=solver.FORWARD, relax=1.0, slop=cfg.solver.overlap_slop, tol=0.0,
-                            max_iter=spec.fixed_sweeps)
+            s.params.update(mode=solver.SWEEPS[cfg.solver.sweep], relax=1.0, slop=cfg.solver.overlap_slop,
+                            tol=0.0, max_iter=spec.fixed_sweeps)
             rounds[n].append(_time_steps(s, spec.fixed_steps, 20 * dth, dth))
     for k, n, s, start, settle in fixed_jobs:
         rs = rounds[n]
         w = np.concatenate([x["walls"] for x in rs])
-        r = dict(n=n, copies=k, box_length=s.params["box_length"], sweep="forward", relax=1.0,
+        r = dict(n=n, copies=k, box_length=s.params["box_length"], sweep=cfg.solver.sweep, relax=1.0,
                  slop=cfg.solver.overlap_slop, tol=0.0, settle_s=settle, fixed_sweeps=spec.fixed_sweeps)
         r.update(rs[-1], steps=int(w.size), ms_per_step=1e3 * float(np.median(w)),
                  ms_per_step_mean=1e3 * float(w.mean()),
@@ -453,15 +457,17 @@ def scaling_sweep(spec: ChartSpec, progress: bool = True) -> pd.DataFrame:
                  sweeps_mean=float(np.mean([x["sweeps_mean"] for x in rs])),
                  cap_hits=sum(x["cap_hits"] for x in rs))
         rows.append(r)
-        _log(f"[scaling] n {n} forward, {spec.fixed_sweeps} sweeps fixed ({spec.fixed_rounds} rounds): "
+        _log(f"[scaling] n {n} {cfg.solver.sweep}, {spec.fixed_sweeps} sweeps fixed ({spec.fixed_rounds} rounds): "
              f"{r['ms_per_step']:.1f} ms/step, {r['ns_per_update']:.1f} ns/update", progress)
     return pd.DataFrame(rows)[SCALING_COLUMNS]
 
 
 def scaling_fit(df: pd.DataFrame) -> dict:
-    out = _linear_fit(df[(df["sweep"] == "forward") & (df["relax"] == 1.0) & (df["slop"] > 0)
-                         & (df["fixed_sweeps"] == 0)])
     fixed = df[df["fixed_sweeps"] > 0].sort_values("n")
+    sweep0 = fixed["sweep"].iloc[0] if len(fixed) else "forward"  # the default sweep of the chart
+    out = _linear_fit(df[(df["sweep"] == sweep0) & (df["relax"] == 1.0) & (df["slop"] > 0)
+                         & (df["fixed_sweeps"] == 0)])
+    out["sweep"] = sweep0
     if len(fixed) >= 2:
         f = _linear_fit(fixed)
         out["fixed_sweeps"] = {k: f[k] for k in f if k in (
@@ -618,13 +624,15 @@ def plot_scaling(sc: pd.DataFrame, fit: dict, path: Path, tilt_per_step: float =
     import matplotlib.pyplot as plt
 
     fig, axes = plt.subplots(1, 3, figsize=(16, 5))
-    styles = {("forward", 1.0, True): ("o-", "C0", "forward, relax 1, overlap slop (default)"),
+    sweep0 = fit.get("sweep", "forward")
+    styles = {(sweep0, 1.0, True): ("o-", "C0", f"{sweep0}, relax 1, overlap slop (default)"),
+              ("forward", 1.0, True): ("<", "C5", "forward, relax 1, overlap slop"),
               ("random", 1.0, False): ("s", "C3", "random, relax 1, slop 0 (plain NLGS reference)"),
               ("forward", 1.0, False): ("v", "C1", "forward, relax 1, slop 0"),
               ("forward", 1.5, True): ("^", "C2", "forward, relax 1.5 (SOR), slop")}
     fixed = sc[sc["fixed_sweeps"] > 0].sort_values("n")
     if len(fixed):
-        lab = f"forward, exactly {int(fixed['fixed_sweeps'].iloc[0])} sweeps per step"
+        lab = f"{sweep0}, exactly {int(fixed['fixed_sweeps'].iloc[0])} sweeps per step"
         axes[0].plot(fixed["n"], fixed["ms_per_step"], "D-", color="C4", label=lab)
         axes[1].plot(fixed["n"], fixed["ns_per_update"], "D-", color="C4", label=lab)
         fx = fit.get("fixed_sweeps", {})

@@ -222,6 +222,7 @@ class System:
 
     def advance(self, n_steps: int, theta0_deg: float, dtheta_deg: float) -> StepRecord:
         """Run ``n_steps`` steps; step k (0-based) feels gravity at theta0 + (k + 1) dtheta."""
+        self._order_contacts()
         rec = StepRecord(n_steps)
         rec.ke0 = self.kinetic_energy()
         p = self.params
@@ -233,6 +234,28 @@ class System:
             math.radians(dtheta_deg), n_steps, rec.iterations, rec.residual, rec.overlap, rec.ke,
             rec.work, rec.missed)
         return rec
+
+    def _order_contacts(self) -> None:
+        """Store the contact list in the order the sweep mode expects: interleaved
+        (``detect.interleave`` of the list sorted by key) for the interleaved sweep, sorted by key
+        for the others. ``advance`` orders a rebuilt list itself; this catches a list stored under
+        another mode (the mode changed in ``params``, or a state restored). Deterministic: an
+        interleaved list comes out of the key-sorted one, so a list already in order is kept."""
+        from tiltpile.sim.detect import interleave
+        from tiltpile.sim.solver import INTERLEAVED
+
+        key = self.key
+        is_sorted = key.size < 2 or bool(np.all(key[1:] > key[:-1]))
+        if self.params["mode"] == INTERLEAVED:
+            if not is_sorted:
+                return
+            order = interleave(self.ci, self.cj, self.n + 3)
+        elif is_sorted:
+            return
+        else:
+            order = np.argsort(key, kind="mergesort")
+        for name in ("ci", "cj", "key", "c", "status"):
+            setattr(self, name, np.ascontiguousarray(getattr(self, name)[order]))
 
     def kinetic_energy(self) -> float:
         """Kinetic energy of the mobile grains (translation and rotation, I = m r^2 / 2) [m g d]."""
