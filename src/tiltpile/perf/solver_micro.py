@@ -22,8 +22,10 @@ s.advance(20, 0.0, cfg.protocol.tilt_per_step_deg)
 C = s.ci.shape[0]
 fm = numba.njit(cache=False, nogil=True, fastmath={"contract"}, error_model="numpy")(solver.nlgs.py_func)
 fa = numba.njit(cache=False, nogil=True, fastmath=True, error_model="numpy")(solver.nlgs.py_func)
-o = detect.interleave(s.ci, s.cj, s.vel.shape[0])
-lists = {"key": (s.ci, s.cj, s.c, s.status), "interleaved": (s.ci[o], s.cj[o], s.c[o], s.status[o])}
+srt = np.argsort(s.key, kind="mergesort")  # the pile stores its list in its own sweep's order
+o = srt[detect.interleave(s.ci[srt], s.cj[srt], s.vel.shape[0])]
+lists = {"key": (s.ci[srt], s.cj[srt], s.c[srt], s.status[srt]),
+         "interleaved": (s.ci[o], s.cj[o], s.c[o], s.status[o])}
 variants = {
     "interleaved": (solver.INTERLEAVED, 1.0, solver.nlgs),
     "forward": (solver.FORWARD, 1.0, solver.nlgs),
