@@ -241,9 +241,6 @@ class System:
         for the others. ``advance`` orders a rebuilt list itself; this catches a list stored under
         another mode (the mode changed in ``params``, or a state restored). Deterministic: an
         interleaved list comes out of the key-sorted one, so a list already in order is kept."""
-        from tiltpile.sim.detect import interleave
-        from tiltpile.sim.solver import INTERLEAVED
-
         key = self.key
         is_sorted = key.size < 2 or bool(np.all(key[1:] > key[:-1]))
         if self.params["mode"] == INTERLEAVED:
