@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from simhelpers import assert_column_forces, copy_system, disk_column, make_system
+from tiltpile import config
 from tiltpile.sim import protocol
 
 MU = 0.5
@@ -139,18 +140,26 @@ def test_settled_pile_support_balances_weight(settled_pile):
 
 
 @pytest.fixture(scope="module")
-def pile_stable_at_10(smoke_config):
-    """A smoke pile that holds 10 deg. Tilted this fast (0.01 deg/step), the 250-grain smoke piles
-    of seeds 1-5 and 7 rearrange at the surface by 10 deg (grains moving 2e-3 to 0.9 d: sliding,
-    not creep); seed 6 does not (measured 1.2e-5 d)."""
-    return protocol.deposited(smoke_config, seed=6)
+def default_smoke():
+    """The smoke preset as it is, default (interleaved) sweep included."""
+    return config.load("smoke")
+
+
+@pytest.fixture(scope="module")
+def pile_stable_at_10(default_smoke):
+    """A smoke pile that holds 10 deg, with the default sweep. Tilted this fast (0.01 deg/step),
+    the 250-grain smoke piles of seeds 1, 2, 6, 7 and 9 rearrange at the surface by 10 deg (grains
+    moving 0.03-1.2 d during the hold: sliding, not creep), seed 4 moves 1.7e-3 d with the slop;
+    seeds 3 and 5 hold (max displacement 2.3e-6 / 5.7e-6 d and 3.2e-5 / 3.8e-4 d, slop 0 / 1e-6,
+    measured per seed with this test's procedure). With the forward sweep it was seed 6 (1.2e-5 d)."""
+    return protocol.deposited(default_smoke, seed=3)
 
 
 @pytest.mark.parametrize("slop", [0.0, 1e-6])
-def test_pile_held_at_10_degrees_barely_creeps(pile_stable_at_10, smoke_config, slop):
+def test_pile_held_at_10_degrees_barely_creeps(pile_stable_at_10, default_smoke, slop):
     """Tilt a settled pile to 10 deg (0.01 deg/step), hold it 1000 steps: creep < 1e-3 d, with the
     plain gap term and with solver.overlap_slop during the tilt."""
-    sysm = copy_system(pile_stable_at_10, smoke_config)
+    sysm = copy_system(pile_stable_at_10, default_smoke)
     sysm.params["slop"] = slop
     sysm.advance(1000, 0.0, 0.01)
     sysm.advance(200, 10.0, 0.0)  # let the last tilt increment settle
