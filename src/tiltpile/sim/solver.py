@@ -140,9 +140,10 @@ def _sweep_stored(ci, cj, cf, vf, w):
     ~50-cycle chain of dependent operations from reading vel[i] to writing it, so the sweep is
     as fast as the *order* lets consecutive updates overlap (``interleave``).
 
-    The local solve is written out here, in ``_sweep_perm`` and in ``natural_residual``: an
-    inlined helper returning a tuple made the sweep 2-3x slower when it was tried (43 against
-    ~20 ns per update, on the 2D kernel before this one).
+    The local solve is written out here rather than shared with ``_local_solution`` (random and
+    alternating sweeps, ``natural_residual``): the flat, unsigned indexing is what makes this
+    loop fast, and an inlined helper returning a tuple once made the sweep 2-3x slower (43
+    against ~20 ns per update, on the 2D kernel before this one).
     """
     nc = _U(ci.shape[0])
     num = 0.0
@@ -183,30 +184,34 @@ def _sweep_stored(ci, cj, cf, vf, w):
     return num, den
 
 
+@njit(inline="always")
+def _local_solution(ci, cj, c, vel, a, w):
+    """The local solution (p_n, p_t) of contact ``a`` given the current velocities, moved ``w``
+    times the plain correction (2D arrays; ``_sweep_stored`` writes the same out on flat ones)."""
+    i = ci[a]
+    j = cj[a]
+    nx = c[a, 0]
+    ny = c[a, 1]
+    dvx = vel[i, 0] - vel[j, 0]
+    dvy = vel[i, 1] - vel[j, 1]
+    un = dvx * nx + dvy * ny
+    ut = -dvx * ny + dvy * nx - (vel[i, 2] + vel[j, 2])
+    pn_new = max(0.0, c[a, 6] - (un + c[a, 2]) * (c[a, 4] * w))
+    lim = c[a, 3] * pn_new
+    return pn_new, min(lim, max(-lim, c[a, 7] - ut * (c[a, 5] * w)))
+
+
 @njit
 def _sweep_perm(ci, cj, c, vel, perm, w):
-    """One sweep in the order ``perm`` (random and alternating sweeps): the same local solve as
-    ``_sweep_stored``, on the 2D arrays."""
+    """One sweep in the order ``perm`` (random and alternating sweeps)."""
     num = 0.0
     den = 0.0
     for k in range(ci.shape[0]):
         a = perm[k]
-        i = ci[a]
-        j = cj[a]
-        nx = c[a, 0]
-        ny = c[a, 1]
-        pn = c[a, 6]
-        pt = c[a, 7]
-        dvx = vel[i, 0] - vel[j, 0]
-        dvy = vel[i, 1] - vel[j, 1]
-        un = dvx * nx + dvy * ny
-        ut = -dvx * ny + dvy * nx - (vel[i, 2] + vel[j, 2])
-        pn_new = max(0.0, pn - (un + c[a, 2]) * (c[a, 4] * w))
-        lim = c[a, 3] * pn_new
-        pt_new = min(lim, max(-lim, pt - ut * (c[a, 5] * w)))
-        dpn = pn_new - pn
-        dpt = pt_new - pt
-        _push(vel, i, j, nx, ny, dpn, dpt)
+        pn_new, pt_new = _local_solution(ci, cj, c, vel, a, w)
+        dpn = pn_new - c[a, 6]
+        dpt = pt_new - c[a, 7]
+        _push(vel, ci[a], cj[a], c[a, 0], c[a, 1], dpn, dpt)
         c[a, 6] = pn_new
         c[a, 7] = pt_new
         num += dpn * dpn + dpt * dpt
@@ -243,24 +248,13 @@ def natural_residual(ci, cj, c, vel):
     sqrt(sum |p_loc - p|^2 / sum |p|^2), zero exactly when every contact satisfies Signorini and
     Coulomb given all the others. Unlike the per-sweep change that stops ``nlgs`` it does not
     depend on the sweep order or the relaxation factor, so it compares solvers at equal accuracy.
-    The contact kinematics below repeat those of the sweeps on purpose (``_sweep_stored``).
     """
     num = 0.0
     den = 0.0
     for a in range(ci.shape[0]):
-        i = ci[a]
-        j = cj[a]
-        nx = c[a, 0]
-        ny = c[a, 1]
         pn = c[a, 6]
         pt = c[a, 7]
-        dvx = vel[i, 0] - vel[j, 0]
-        dvy = vel[i, 1] - vel[j, 1]
-        un = dvx * nx + dvy * ny
-        ut = -dvx * ny + dvy * nx - (vel[i, 2] + vel[j, 2])
-        pn_new = max(0.0, pn - (un + c[a, 2]) * c[a, 4])
-        lim = c[a, 3] * pn_new
-        pt_new = min(lim, max(-lim, pt - ut * c[a, 5]))
+        pn_new, pt_new = _local_solution(ci, cj, c, vel, a, 1.0)
         num += (pn_new - pn) ** 2 + (pt_new - pt) ** 2
         den += pn * pn + pt * pt
     if den > 0.0:
