@@ -66,7 +66,7 @@ class SolverConfig:
                                doc="the same during deposition (only its end state matters)")
     max_iter: int = _f(2000, lo=1, hi=10_000_000, doc="cap on NLGS sweeps per step")
     # interleaved: the forward (key) order with no body twice within 8 places (sim/solver.py);
-    # the same sweeps per step as forward, 1.4-1.6x less time per sweep
+    # the same sweeps per step as forward, 1.36-1.65x less time per sweep (perf/solver_micro)
     sweep: str = _f("interleaved", choices=("alternating", "random", "forward", "interleaved"),
                     doc="contact order of the NLGS sweeps")
     # Projected SOR (sim/solver.py). Measured on the settled bench piles while tilting at tol

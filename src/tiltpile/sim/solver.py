@@ -137,8 +137,9 @@ def _sweep_stored(ci, cj, cf, vf, w):
     ``python -m tiltpile.perf.solver_micro``: the flat views cf = c.ravel(), vf = vel.ravel()
     with unsigned indices carry no negative-index wrap-around code, and the clip to the cone is
     min/max instead of branches. About 75 instructions per update; the whole update is then one
-    ~50-cycle chain of dependent operations from reading vel[i] to writing it, so the sweep is
-    as fast as the *order* lets consecutive updates overlap (``interleave``).
+    chain of dependent operations from reading vel[i] to writing it (~50 cycles, counted off the
+    asm, not measured), so the sweep is as fast as the *order* lets consecutive updates overlap
+    (``interleave``).
 
     The local solve is written out here rather than shared with ``_local_solution`` (random and
     alternating sweeps, ``natural_residual``): the flat, unsigned indexing is what makes this
