@@ -10,16 +10,6 @@ from tiltpile.sim.rng import make_state
 from tiltpile.sim.solver import SWEEPS
 from tiltpile.sim.step import System
 
-# The tests that rely on a property of one particular pile (where the smoke run first fails,
-# which pile flows at 9.3 deg, the 60-grain stability piles, ...) chose their seeds by measurement with
-# the forward sweep, the default until the interleaved sweep. Another sweep order converges to
-# another solution within tol, and these small piles are chaotic, so the interleaved sweep (the
-# default now) deposits and tilts other, equally valid piles. Those tests keep the sweep they were
-# measured with; test_sweep_order shows that both sweeps hold the same pile, and the figure
-# notebooks, the ensemble and resume tests and the creep test at 10 deg (test_physics, seed
-# chosen anew) run the default.
-CALIBRATED = ("solver.sweep=forward",)
-
 
 def make_system(radius, pos, *, fixed=None, box_length=100.0, dt=0.01, mu=0.5, mu_wall=0.5,
                 tol=1e-12, max_iter=10_000, sweep="forward", alert=0.1, gravity=1.0, slop=0.0):

@@ -40,11 +40,14 @@ def test_interleave_on_a_pile(settled_pile):
     the window (key order: most of them), and the order stays close to key order."""
     s = settled_pile
     w = detect.INTERLEAVE_WINDOW
-    order = detect.interleave(s.ci, s.cj, s.n + 3)
-    assert np.array_equal(np.sort(order), np.arange(s.ci.size))
-    assert len(_repeats(s.ci, s.cj, w)) > 0.5 * s.ci.size
-    assert len(_repeats(s.ci[order], s.cj[order], w)) < 0.02 * s.ci.size
-    assert np.abs(order - np.arange(s.ci.size)).max() < 8 * w
+    by_key = np.argsort(s.key)            # the pile stores its list interleaved already
+    ci, cj = s.ci[by_key], s.cj[by_key]
+    order = detect.interleave(ci, cj, s.n + 3)
+    assert np.array_equal(np.sort(order), np.arange(ci.size))
+    assert len(_repeats(ci, cj, w)) > 0.5 * ci.size
+    assert len(_repeats(ci[order], cj[order], w)) < 0.02 * ci.size
+    assert np.abs(order - np.arange(ci.size)).max() < 8 * w
+    assert len(_repeats(s.ci, s.cj, w)) < 0.02 * ci.size     # ... as the default sweep stores it
 
 
 def test_carry_impulses_in_any_order():
@@ -83,9 +86,8 @@ def test_column_forces_with_the_interleaved_sweep():
 def test_interleaved_and_forward_sweeps_hold_the_same_pile(settled_pile, smoke_config):
     """From the settled smoke pile, 100 steps at rest with each sweep at tol 1e-6: the list is
     stored interleaved after the first rebuild (same pairs as key order), both converge on
-    nearly every step at about the same number of sweeps (measured 213 and 214 per step), end at
-    a small natural residual, and the grains stay where they are. (The first few steps, from a
-    pile deposited at the smoke tol 1e-5, stall at the cap with either sweep.)"""
+    nearly every step at about the same number of sweeps (measured 17.8 and 17.6 per step, every
+    step converged), end at a small natural residual, and the grains stay where they are."""
     ends, sweeps = {}, {}
     for sweep in ("forward", "interleaved"):
         s = copy_system(settled_pile, smoke_config)
