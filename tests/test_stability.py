@@ -414,7 +414,7 @@ def test_two_percent_criterion_needs_enough_contacts():
 def test_two_percent_criterion_needs_close_frames():
     """Quiet frames lose 0.2% of 1000 contacts per frame spacing; avalanches 6%. Recording every
     10th frame makes quiet frames lose ~2%: half of them cross the cutoff, and the median lost
-    fraction (80% of the frames quiet) exceeds cutoff / 2, which frame_spacing_check flags."""
+    fraction of those left below it exceeds cutoff / 2, which frame_spacing_check flags."""
     def series(spacing):
         quiet, aval = _populations(1000, 0.002 * spacing, 0.06, n=800)
         return quiet, aval, np.r_[quiet, aval[:200]]
@@ -429,6 +429,21 @@ def test_two_percent_criterion_needs_close_frames():
         assert frame_spacing_check(s10) > 0.5
     with pytest.warns(ResolutionWarning, match="frames are too far apart"):
         segment_avalanches(s10)
+
+
+def test_frame_spacing_check_judges_the_quiet_frames():
+    """A run that flows most of the time (a paper-scale tilt to 30 deg: 62% of the frames above
+    the cutoff) with close frames is not flagged: 300 quiet frames losing 0.2% of 1000 contacts
+    and 700 avalanching ones losing 6%; the median over all frames would be 3 cutoffs. With no
+    quiet frame at all the median of all frames decides, and flags."""
+    quiet, aval = _populations(1000, 0.002, 0.06, n=700)
+    mostly_flowing = np.r_[quiet[:300], aval]
+    assert np.median(mostly_flowing) > 0.02
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert frame_spacing_check(mostly_flowing) < 0.2
+    with pytest.warns(ResolutionWarning, match="none at or below the cutoff"):
+        assert frame_spacing_check(aval) > 2.0
 
 
 def test_two_percent_criterion_on_a_small_simulated_pile(tmp_path):
