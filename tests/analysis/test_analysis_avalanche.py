@@ -27,6 +27,16 @@ def test_segmentation_periods_and_onsets():
     assert seg["period_start"][[0, 9, 10, 12, 13, 19, 23]].tolist() == [0, 0, 10, 10, 13, 18, 20]
 
 
+def test_stretches_are_the_avalanches():
+    lf, _ = _series()
+    starts, ends = av.stretches(av.segment_avalanches(lf, cutoff=0.02)["avalanching"])
+    np.testing.assert_array_equal(starts, [10, 18])
+    np.testing.assert_array_equal(ends, [13, 20])
+    for mask in ([], [False], [True, True]):
+        s, e = av.stretches(np.array(mask, bool))
+        assert (s.tolist(), e.tolist()) == (([0], [2]) if len(mask) == 2 else ([], []))
+
+
 def test_theta_relative_to_next_onset():
     lf, theta = _series()
     seg = av.segment_avalanches(lf, cutoff=0.02)

@@ -26,6 +26,7 @@ from .avalanche import (
     onset_robustness_ensemble,
     resegment,
     segment_avalanches,
+    stretches,
     theta_relative_to_onset,
 )
 from .clusters import (

@@ -137,7 +137,7 @@ def segment_avalanches(lost_fraction: np.ndarray, cutoff: float = 0.02,
             prev = lf[k] > cutoff
         av[k] = prev
     if merge_gap > 0 and nf:
-        starts, ends = _runs(~av)
+        starts, ends = stretches(~av)
         for s, e in zip(starts, ends):
             if s > 0 and e < nf and (e - s) < merge_gap:
                 av[s:e] = True
@@ -152,8 +152,9 @@ def segment_avalanches(lost_fraction: np.ndarray, cutoff: float = 0.02,
             "period": period.astype(np.int64), "period_start": np.asarray(period_start, dtype=np.int64)}
 
 
-def _runs(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """Start (inclusive) and end (exclusive) indices of the True stretches of a bool array."""
+def stretches(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Start (inclusive) and end (exclusive) indices of the maximal True stretches of a bool
+    array, e.g. the avalanches of ``segment_avalanches(...)["avalanching"]``."""
     m = np.concatenate([[False], np.asarray(mask, dtype=bool), [False]])
     d = np.diff(m.astype(np.int8))
     return np.flatnonzero(d == 1), np.flatnonzero(d == -1)

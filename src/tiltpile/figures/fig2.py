@@ -29,8 +29,7 @@ import pandas as pd
 
 from tiltpile.analysis import stats as _st
 from tiltpile.analysis.avalanche import (SPACING_LIMIT, ResolutionWarning, frame_spacing_check,
-                                         onset_robustness_ensemble)
-from tiltpile.analysis.avalanche import _runs as _stretches  # (starts, ends) of True stretches
+                                         onset_robustness_ensemble, stretches)
 
 from . import fig3, style
 
@@ -282,7 +281,7 @@ def plot(data: dict, numbers: dict):
     s = data["sample"]
     th = s["theta_deg"].to_numpy(float)
     dth = float(np.median(np.diff(th))) if th.size > 1 else 0.1
-    for i, j in zip(*_stretches(s["avalanching"].to_numpy(bool))):
+    for i, j in zip(*stretches(s["avalanching"].to_numpy(bool))):
         c.axvspan(th[i] - dth / 2, th[j - 1] + dth / 2, color=style.COLORS["avalanche_shade"],
                   alpha=0.45, lw=0)
     c.axhline(0, color=style.COLORS["marginal"], lw=0.8)
