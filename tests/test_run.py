@@ -23,13 +23,6 @@ REQUIRED = ["particles/radius", "particles/fixed", "frames/step", "frames/time",
             "contacts/force", "contacts/status"]
 
 
-@pytest.fixture(scope="session")
-def smoke_run(tmp_path_factory, smoke_config):
-    out = tmp_path_factory.mktemp("smoke") / "run_0001.h5"
-    summary = simulate(smoke_config, 1, out, progress=False)
-    return out, summary
-
-
 def test_run_file_layout(smoke_run, smoke_config):
     path, summary = smoke_run
     assert path.exists() and not part_path(path).exists() and not checkpoint_path(path).exists()
