@@ -6,7 +6,8 @@ Usage: python -m tiltpile.perf.flow_caps RUN FRAME STEPS [--warm W] [variant ...
   STEPS  steps per variant
   --warm W  steps at max_iter 20 000 before the variants (default 10): a frame stores
          positions and velocities but not the impulses, which these steps rebuild
-  variant = max_iter[:relax], e.g. 20000 1000 300:1.5 (default: 20000 1000 500 300 200 100)
+  variant = max_iter[:relax[:prune]], e.g. 20000 1000 300:1.5 1000:1:1 (prune 0 or 1; default:
+         the run's solver.prune), default 20000 1000 500 300 200 100
 
 The state is rebuilt with the run's own configuration: the pile of its seed, the frame's
 positions, rotations and velocities, a fresh contact list; then W steps that end at the frame's
@@ -60,8 +61,9 @@ def measure(cfg, seed: int, theta, state, steps: int, variants) -> list[dict]:
     for spec in variants:
         parts = spec.split(":")
         cap, relax = int(parts[0]), float(parts[1]) if len(parts) > 1 else 1.0
+        prune = bool(int(parts[2])) if len(parts) > 2 else cfg.solver.prune
         s.restore(state)
-        s.params.update(max_iter=cap, relax=relax)
+        s.params.update(max_iter=cap, relax=relax, prune=prune)
         p0 = s.pos.copy()
         ke, nat, wall = [], [], 0.0
         for k in range(steps):

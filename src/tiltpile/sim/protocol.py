@@ -121,7 +121,7 @@ def make_system(config, seed: int) -> System:
     sysm = System(sc["radius"], sc["fixed"], sc["position"], sc["inv_mass"], srng.make_state(seed),
                   box_length=s.box_length, dt=v.dt, alert=v.alert, mu=s.mu, mu_wall=s.mu_wall,
                   tol=v.tol, max_iter=v.max_iter, mode=SWEEPS[v.sweep], relax=v.relax,
-                  slop=v.overlap_slop)
+                  slop=v.overlap_slop, prune=v.prune)
     sysm.scalars.update(phase="deposit", step=0, rest_count=0, tilt_step=0, frame=0,
                         deposition_steps=0, rebuilds=0)
     return sysm

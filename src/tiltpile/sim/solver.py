@@ -42,6 +42,18 @@ tol 1e-6 (python -m tiltpile.perf.solver_variants): forward sweeps at omega 1.5 
 sweeps per step against 261 / 623 for random plain NLGS, with 2.4-4x less unbalanced force per
 grain left; omega >= 1.7 can oscillate between sticking and sliding states and hit max_iter.
 
+Pruned sweeps (``prune``; ``solver.prune``, set by the paper preset). ~30% of the candidate
+contacts are open with a gap that no velocity in the pile closes within a step (alert distance
+0.1 d, gap rates up to 10 d per unit time). Their local solve gives p = 0 and changes nothing,
+yet costs a full update in every sweep. A step still unconverged after PRUNE_AFTER sweeps sweeps
+a compacted list without them, with a full sweep every PRUNE_EVERY sweeps and at the cap, and
+ends on the compacted list only if none of them would now overlap. The sweeps are then those
+of the full list bit for bit, as long as none of the left-out contacts closes during the step:
+measured over 20 capped steps at 8, 12, 17 and 24 deg of the paper run (20-30% less time per
+step) and in ``tests/test_pruned_sweeps.py``. A contact that does close (a grain falling onto
+the pile in a deposition) is caught at the end and the step goes on with full sweeps, so the
+result is as converged but the iterates differ from then on.
+
 Convergence: the relative L2 change of the impulses over one sweep, divided by omega,
     r = sqrt(sum |p^k - p^(k-1)|^2 / sum |p^k|^2) / omega,
 (the change per sweep of an over-relaxed solve is omega times the plain local correction, so
@@ -66,6 +78,15 @@ SWEEPS = {"forward": FORWARD, "alternating": ALTERNATING, "random": RANDOM, "int
 
 OPEN, STICK, SLIDE = 0, 1, 2
 
+# Pruned sweeps (``nlgs(..., prune=True)``, ``_pruned_sweeps``): after PRUNE_AFTER full sweeps a
+# step that has not converged sweeps only the contacts that can act, with a full sweep every
+# PRUNE_EVERY sweeps and as the last one at the cap. PRUNE_MARGIN [d / sqrt(d/g)]: an open contact
+# is left out when its gap closes no faster than this (u_n + b > PRUNE_MARGIN); a velocity
+# change of that size is 10 g dt at dt = 0.01.
+PRUNE_AFTER = 20
+PRUNE_EVERY = 100
+PRUNE_MARGIN = 0.1
+
 
 @njit
 def apply_impulses(ci, cj, c, vel):
@@ -89,11 +110,13 @@ def _push(vel, i, j, nx, ny, dpn, dpt):
 
 
 @njit
-def nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm, relax=1.0):
+def nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm, relax=1.0, prune=False):
     """Sweep until the relative impulse change is <= tol or ``max_iter`` sweeps.
 
-    ``perm`` (C,) int64 is scratch for the random and alternating orders. Returns (sweeps, residual). ``status``
-    is set from the final impulses (``set_status``).
+    ``perm`` (C,) int64 is scratch for the random and alternating orders. ``prune`` (forward and
+    interleaved sweeps): past ``PRUNE_AFTER`` sweeps, sweep only the contacts that can act
+    (``_pruned_sweeps``). Returns (sweeps, residual). ``status`` is set from the final impulses
+    (``set_status``).
     """
     nc = ci.shape[0]
     if nc == 0:
@@ -125,8 +148,75 @@ def nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm, relax=1.0
             res = 0.0 if num == 0.0 else np.inf
         if res <= tol:
             break
+        if prune and (mode == FORWARD or mode == INTERLEAVED) and PRUNE_AFTER <= it < max_iter - 1:
+            it, res, done = _pruned_sweeps(ci, cj, c, vel, tol, it,
+                                           min(max_iter - 1, it + PRUNE_EVERY - 1), relax)
+            if done:
+                break
     set_status(c, status)
     return it, res
+
+
+@njit
+def _pruned_sweeps(ci, cj, c, vel, tol, it, last, w):
+    """Sweeps over the contacts that can act, from sweep ``it`` up to sweep ``last`` at most.
+
+    Left out: open contacts (p_n = 0) whose end-of-step gap rate u_n + b exceeds PRUNE_MARGIN at
+    the start. As long as u_n + b >= 0 stays true for them their local solve gives p = 0 and a
+    full sweep would change nothing there, so these sweeps are bit for bit those of the full list
+    (the residual's sums only miss zeros). In the long steps that reach this (a moving pile,
+    ~30% of the candidate contacts open) a sweep costs ~20% less. The list keeps the stored order.
+
+    Returns (it, res, done): done when the residual reached tol and every contact left out still
+    has u_n + b >= 0 (else, or at ``last``, the caller goes on with a full sweep, which checks
+    every contact again). Impulses are copied back either way.
+    """
+    nc = ci.shape[0]
+    pci = np.empty(nc, np.int32)
+    pcj = np.empty(nc, np.int32)
+    pc = np.empty((nc, 8))
+    idx = np.empty(nc, np.int64)
+    m = 0
+    for a in range(nc):
+        keep = c[a, 6] != 0.0
+        if not keep:
+            i = ci[a]
+            j = cj[a]
+            un = (vel[i, 0] - vel[j, 0]) * c[a, 0] + (vel[i, 1] - vel[j, 1]) * c[a, 1]
+            keep = un + c[a, 2] <= PRUNE_MARGIN
+        if keep:
+            idx[m] = a
+            pci[m] = ci[a]
+            pcj[m] = cj[a]
+            for k in range(8):
+                pc[m, k] = c[a, k]
+            m += 1
+    pcf = pc[:m].reshape(8 * m)
+    vf = vel.reshape(vel.size)
+    res = np.inf
+    while it < last:
+        num, den = _sweep_stored(pci[:m], pcj[:m], pcf, vf, w)
+        it += 1
+        if den > 0.0:
+            res = math.sqrt(num / den) / w
+        else:
+            res = 0.0 if num == 0.0 else np.inf
+        if res <= tol:
+            break
+    for k in range(m):
+        c[idx[k], 6] = pc[k, 6]
+        c[idx[k], 7] = pc[k, 7]
+    done = res <= tol
+    if done:
+        for a in range(nc):
+            if c[a, 6] == 0.0:
+                i = ci[a]
+                j = cj[a]
+                un = (vel[i, 0] - vel[j, 0]) * c[a, 0] + (vel[i, 1] - vel[j, 1]) * c[a, 1]
+                if un + c[a, 2] < 0.0:
+                    done = False
+                    break
+    return it, res, done
 
 
 @njit

@@ -97,7 +97,7 @@ def contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall, s
 @njit
 def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state, perm,
             box_length, dt, alert, mu, mu_wall, tol, max_iter, mode, relax, slop, gravity,
-            theta0, dtheta, n_steps, out_iter, out_res, out_overlap, out_ke, out_work, out_missed):
+            prune, theta0, dtheta, n_steps, out_iter, out_res, out_overlap, out_ke, out_work, out_missed):
     """Advance ``n_steps`` steps; gravity angle of step k is theta0 + (k + 1) dtheta [rad],
     its magnitude ``gravity`` (1 in every run; 0 in some validation tests).
 
@@ -135,7 +135,7 @@ def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state
             rebuilds += 1
         out_overlap[k] = contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall, slop)
         apply_impulses(ci, cj, c, vel)
-        it, res = nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm, relax)
+        it, res = nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm, relax, prune)
         out_iter[k] = it
         out_res[k] = res
         ke = 0.0
@@ -191,13 +191,14 @@ class System:
     State arrays (``ARRAYS``) are everything a bit-identical restart needs; ``scalars`` holds the
     counters the protocol keeps. Parameters: box_length, dt, alert, mu, mu_wall, tol, max_iter,
     sweep mode (``solver.SWEEPS``), over-relaxation factor ``relax`` (default 1 = plain NLGS, as
-    ``solver.relax`` in the config), gravity magnitude (1).
+    ``solver.relax`` in the config), gravity magnitude (1), ``prune`` (pruned sweeps in long
+    steps, ``solver.prune``; off unless given).
     """
 
     ARRAYS = ("radius", "fixed", "pos", "rot", "vel", "ref", "ci", "cj", "key", "c", "status", "rng")
 
     def __init__(self, radius, fixed, pos, inv_mass, rng, *, box_length, dt, alert, mu, mu_wall,
-                 tol, max_iter, mode, relax=1.0, slop=0.0, gravity=1.0):
+                 tol, max_iter, mode, relax=1.0, slop=0.0, gravity=1.0, prune=False):
         from tiltpile.sim.solver import empty_contacts
 
         n = radius.shape[0]
@@ -213,7 +214,8 @@ class System:
         self.rng = rng
         self.params = dict(box_length=float(box_length), dt=float(dt), alert=float(alert), mu=float(mu),
                            mu_wall=float(mu_wall), tol=float(tol), max_iter=int(max_iter), mode=int(mode),
-                           relax=float(relax), slop=float(slop), gravity=float(gravity))
+                           relax=float(relax), slop=float(slop), gravity=float(gravity),
+                           prune=bool(prune))
         self.scalars: dict = {}
 
     @property
@@ -230,7 +232,7 @@ class System:
             self.pos, self.rot, self.vel, self.radius, self.fixed, self.ref, self.ci, self.cj, self.key,
             self.c, self.status, self.rng, self.perm, p["box_length"], p["dt"], p["alert"], p["mu"],
             p["mu_wall"], p["tol"], p["max_iter"], p["mode"], p["relax"], p["slop"], p["gravity"],
-            math.radians(theta0_deg),
+            p["prune"], math.radians(theta0_deg),
             math.radians(dtheta_deg), n_steps, rec.iterations, rec.residual, rec.overlap, rec.ke,
             rec.work, rec.missed)
         return rec
