@@ -22,15 +22,20 @@ def _left_out(s) -> int:
 
 
 def _same_with_and_without(make, steps, theta0, dtheta):
-    ends, its = {}, {}
+    ends, its, upd = {}, {}, {}
     for prune in (False, True):
         s = make()
         s.params["prune"] = prune
-        its[prune] = s.advance(steps, theta0, dtheta).iterations
+        rec = s.advance(steps, theta0, dtheta)
+        its[prune], upd[prune] = rec.iterations, rec.updates
         ends[prune] = s
     np.testing.assert_array_equal(its[True], its[False])
     for k in STATE:
         np.testing.assert_array_equal(getattr(ends[True], k), getattr(ends[False], k), err_msg=k)
+    # local solves: every sweep over the whole list without pruning, fewer with it once past
+    # PRUNE_AFTER sweeps (the contact list of a step can be rebuilt, so compare step by step)
+    assert np.all(upd[True] <= upd[False])
+    assert np.all(upd[True][its[True] > solver.PRUNE_AFTER + 1] < upd[False][its[True] > solver.PRUNE_AFTER + 1])
     return its[True], ends[True]
 
 
@@ -73,11 +78,12 @@ def test_a_left_out_contact_that_closes_is_caught():
     c = np.zeros((2, 8))
     for a, (b, wnn) in enumerate([(0.0, 1.0), (1e-3 / 0.01, 2.0)]):
         c[a, :6] = (0.0, 1.0, b, 0.5, 1.0 / wnn, 1.0 / (3.0 * wnn))
-    it, res, done = solver._pruned_sweeps(ci, cj, c, vel, 1e-12, 20, 30, 1.0)
-    assert res == 0.0 and it == 22 and not done
+    it, res, done, m = solver._pruned_sweeps(ci, cj, c, vel, 1e-12, 20, 30, 1.0)
+    assert res == 0.0 and it == 22 and not done and m == 1
     assert c[0, 6] == 5.0 and c[1, 6] == 0.0          # B was not swept ...
     assert vel[1, 1] - vel[0, 1] + c[1, 2] < 0.0        # ... and would now overlap
     status = np.zeros(2, np.int8)
-    it, res = solver.nlgs(ci, cj, c, status, vel, 1e-12, 100, solver.INTERLEAVED,
-                          make_state(0), np.empty(2, np.int64), 1.0, True)
+    it, res, updates = solver.nlgs(ci, cj, c, status, vel, 1e-12, 100, solver.INTERLEAVED,
+                                   make_state(0), np.empty(2, np.int64), 1.0, True)
     assert res <= 1e-12 and c[1, 6] > 0.0 and vel[1, 1] - vel[0, 1] + c[1, 2] >= -1e-12
+    assert updates == 2 * it                        # too short a solve to be pruned

@@ -33,8 +33,8 @@ temporary name, then renamed):
    sweeps rely on it), fixed bottom rows included; the inner walls disappear. The tiled pile settles
    ``tile_settle_steps`` steps at tol 1e-4 at theta = 0 (the seams relax), then 20 untimed tilt
    steps at the timed tolerance, then ``scaling_steps`` timed tilt steps, each timed alone:
-   median ms per step, ns per contact update (time / (sweeps x candidate contacts)), sweeps per
-   step. The default sweep (``solver.sweep``, interleaved) relax 1 with the default overlap slop
+   median ms per step, ns per contact update (time / local solves made,
+   ``StepRecord.updates``), sweeps per step. The default sweep (``solver.sweep``, interleaved) relax 1 with the default overlap slop
    at every N; at ``variant_ns`` also, from the same state: forward relax 1 with the slop (the
    key order, the default before the interleaved sweep), random relax 1 with slop 0 (plain NLGS
    with the plain gap term, the reference of issue 6), forward relax 1 with slop 0, and forward
@@ -383,7 +383,7 @@ def _time_steps(sysm: System, steps: int, theta0: float, dth: float) -> dict:
         rec = sysm.advance(1, theta0 + k * dth, dth)
         walls.append(time.perf_counter() - t0)
         its.append(int(rec.iterations[0]))
-        upd += int(rec.iterations[0]) * sysm.ci.shape[0]
+        upd += int(rec.updates[0])
     walls, its = np.array(walls), np.array(its)
     return dict(steps=steps, contacts=int(sysm.ci.shape[0]),
                 active_contacts=int((sysm.c[:, 6] > 0).sum()),

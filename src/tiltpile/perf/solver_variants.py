@@ -59,7 +59,7 @@ for spec in specs:
         w = time.perf_counter() - t0
         wall += w
         its.append(int(rec.iterations[0]))
-        upd += int(rec.iterations[0]) * s.ci.shape[0]
+        upd += int(rec.updates[0])
         if (k + 1) % every == 0:
             nat.append(solver.natural_residual(s.ci, s.cj, s.c, s.vel))
             c = s.c.copy(); vel = s.vel.copy()

@@ -97,7 +97,8 @@ def contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall, s
 @njit
 def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state, perm,
             box_length, dt, alert, mu, mu_wall, tol, max_iter, mode, relax, slop, gravity,
-            prune, theta0, dtheta, n_steps, out_iter, out_res, out_overlap, out_ke, out_work, out_missed):
+            prune, theta0, dtheta, n_steps, out_iter, out_res, out_overlap, out_ke, out_work, out_missed,
+            out_updates):
     """Advance ``n_steps`` steps; gravity angle of step k is theta0 + (k + 1) dtheta [rad],
     its magnitude ``gravity`` (1 in every run; 0 in some validation tests).
 
@@ -135,8 +136,9 @@ def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state
             rebuilds += 1
         out_overlap[k] = contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall, slop)
         apply_impulses(ci, cj, c, vel)
-        it, res = nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm, relax, prune)
+        it, res, upd = nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm, relax, prune)
         out_iter[k] = it
+        out_updates[k] = upd
         out_res[k] = res
         ke = 0.0
         work = 0.0
@@ -166,7 +168,8 @@ class StepRecord:
     docstring).
     """
 
-    __slots__ = ("iterations", "residual", "overlap", "ke", "work", "missed", "rebuilds", "ke0")
+    __slots__ = ("iterations", "residual", "overlap", "ke", "work", "missed", "rebuilds", "ke0",
+                 "updates")
 
     def __init__(self, n_steps: int):
         self.iterations = np.zeros(n_steps, np.int64)
@@ -175,6 +178,7 @@ class StepRecord:
         self.ke = np.zeros(n_steps)
         self.work = np.zeros(n_steps)
         self.missed = np.zeros(n_steps, np.bool_)
+        self.updates = np.zeros(n_steps, np.int64)  # local solves (contact updates) per step
         self.rebuilds = 0
         self.ke0 = 0.0
 
@@ -234,7 +238,7 @@ class System:
             p["mu_wall"], p["tol"], p["max_iter"], p["mode"], p["relax"], p["slop"], p["gravity"],
             p["prune"], math.radians(theta0_deg),
             math.radians(dtheta_deg), n_steps, rec.iterations, rec.residual, rec.overlap, rec.ke,
-            rec.work, rec.missed)
+            rec.work, rec.missed, rec.updates)
         return rec
 
     def _order_contacts(self) -> None:
