@@ -43,13 +43,13 @@ sweeps per step against 261 / 623 for random plain NLGS, with 2.4-4x less unbala
 grain left; omega >= 1.7 can oscillate between sticking and sliding states and hit max_iter.
 
 Pruned sweeps (``prune``; ``solver.prune``, on by default). ~30% of the candidate contacts are
-open (alert distance 0.1 d), and 17-18% of them have a gap that no velocity in the pile closes
-within a step. Their local solve gives p = 0 and changes nothing, yet costs a full update in
-every sweep. A step still unconverged after PRUNE_AFTER sweeps sweeps a compacted list without
+open (alert distance 0.1 d); 17-18% of all candidates in the paper run are open with a gap that
+nothing in the pile closes within a step. Their local solve gives p = 0 and changes nothing,
+yet costs a full update in every sweep. A step still unconverged after PRUNE_AFTER sweeps sweeps a compacted list without
 them, with a full sweep every PRUNE_EVERY sweeps and at the cap, and ends on the compacted list
 only if none of them would now overlap. The sweeps are then those of the full list bit for bit,
 as long as none of the left-out contacts closes during the step: measured over 20 capped steps
-at 8, 12, 17 and 24 deg of the paper run (0.68-0.85x the time per step), in the smoke
+at 12, 17 and 24 deg of the paper run (0.68-0.85x the time per step), in the smoke
 deposition of seed 1 (10 000 steps), the figure and stability tests, and
 ``tests/test_pruned_sweeps.py``. A contact that does close is caught at the end and the step
 goes on with full sweeps: as converged, but the iterates differ from then on.
@@ -170,7 +170,7 @@ def _pruned_sweeps(ci, cj, c, vel, tol, it, last, w):
     the start. As long as u_n + b >= 0 stays true for them their local solve gives p = 0 and a
     full sweep would change nothing there, so these sweeps are bit for bit those of the full list
     (the residual's sums only miss zeros). In the long steps that reach this (a moving pile,
-    ~30% of the candidate contacts open) a sweep costs ~20% less. The list keeps the stored order.
+    17-18% of the candidates left out) a step costs 15-30% less. The list keeps the stored order.
 
     Returns (it, res, done, m): done when the residual reached tol and every contact left out
     still has u_n + b >= 0 (else, or at ``last``, the caller goes on with a full sweep, which
