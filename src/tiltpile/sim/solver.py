@@ -145,10 +145,7 @@ def nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm, relax=1.0
             num, den = _sweep_stored(ci, cj, cf, vf, w)
         it += 1
         updates += nc
-        if den > 0.0:
-            res = math.sqrt(num / den) / w
-        else:
-            res = 0.0 if num == 0.0 else np.inf
+        res = _relative_change(num, den, w)
         if res <= tol:
             break
         if prune and (mode == FORWARD or mode == INTERLEAVED) and PRUNE_AFTER <= it < max_iter - 1:
@@ -170,7 +167,8 @@ def _pruned_sweeps(ci, cj, c, vel, tol, it, last, w):
     the start. As long as u_n + b >= 0 stays true for them their local solve gives p = 0 and a
     full sweep would change nothing there, so these sweeps are bit for bit those of the full list
     (the residual's sums only miss zeros). In the long steps that reach this (a moving pile,
-    17-18% of the candidates left out) a step costs 15-30% less. The list keeps the stored order.
+    17-18% of the candidates left out) a step took 0.68-0.85x the time (paper run, 12-24 deg).
+    The list keeps the stored order.
 
     Returns (it, res, done, m): done when the residual reached tol and every contact left out
     still has u_n + b >= 0 (else, or at ``last``, the caller goes on with a full sweep, which
@@ -181,50 +179,55 @@ def _pruned_sweeps(ci, cj, c, vel, tol, it, last, w):
     pcj = np.empty(nc, np.int32)
     pc = np.empty((nc, 8))
     idx = np.empty(nc, np.int64)
+    out = np.empty(nc, np.int64)
     m = 0
+    n_out = 0
     for a in range(nc):
-        keep = c[a, 6] != 0.0
-        if not keep:
-            i = ci[a]
-            j = cj[a]
-            un = (vel[i, 0] - vel[j, 0]) * c[a, 0] + (vel[i, 1] - vel[j, 1]) * c[a, 1]
-            keep = un + c[a, 2] <= PRUNE_MARGIN
-        if keep:
-            idx[m] = a
-            pci[m] = ci[a]
-            pcj[m] = cj[a]
-            for k in range(8):
-                pc[m, k] = c[a, k]
-            m += 1
+        if c[a, 6] == 0.0 and _gap_rate(ci, cj, c, vel, a) > PRUNE_MARGIN:
+            out[n_out] = a
+            n_out += 1
+            continue
+        idx[m] = a
+        pci[m] = ci[a]
+        pcj[m] = cj[a]
+        for k in range(8):
+            pc[m, k] = c[a, k]
+        m += 1
     pcf = pc[:m].reshape(8 * m)
     vf = vel.reshape(vel.size)
     res = np.inf
     while it < last:
         num, den = _sweep_stored(pci[:m], pcj[:m], pcf, vf, w)
         it += 1
-        if den > 0.0:
-            res = math.sqrt(num / den) / w
-        else:
-            res = 0.0 if num == 0.0 else np.inf
+        res = _relative_change(num, den, w)
         if res <= tol:
             break
     for k in range(m):
         c[idx[k], 6] = pc[k, 6]
         c[idx[k], 7] = pc[k, 7]
     done = res <= tol
-    if done:  # would a full sweep change a contact left out? (idx is ascending)
-        k = 0
-        for a in range(nc):
-            if k < m and idx[k] == a:
-                k += 1
-                continue
-            i = ci[a]
-            j = cj[a]
-            un = (vel[i, 0] - vel[j, 0]) * c[a, 0] + (vel[i, 1] - vel[j, 1]) * c[a, 1]
-            if un + c[a, 2] < 0.0:
+    if done:  # would a full sweep change a contact left out?
+        for k in range(n_out):
+            if _gap_rate(ci, cj, c, vel, out[k]) < 0.0:
                 done = False
                 break
     return it, res, done, m
+
+
+@njit(inline="always")
+def _relative_change(num, den, w):
+    """The stopping residual of a sweep from its sums (module docstring, "Convergence")."""
+    if den > 0.0:
+        return math.sqrt(num / den) / w
+    return 0.0 if num == 0.0 else np.inf
+
+
+@njit(inline="always")
+def _gap_rate(ci, cj, c, vel, a):
+    """u_n + b of contact ``a``: how fast its end-of-step gap opens (< 0: it would overlap)."""
+    i = ci[a]
+    j = cj[a]
+    return (vel[i, 0] - vel[j, 0]) * c[a, 0] + (vel[i, 1] - vel[j, 1]) * c[a, 1] + c[a, 2]
 
 
 @njit
@@ -356,7 +359,5 @@ def natural_residual(ci, cj, c, vel):
         pn_new, pt_new = _local_solution(ci, cj, c, vel, a, 1.0)
         num += (pn_new - pn) ** 2 + (pt_new - pt) ** 2
         den += pn * pn + pt * pt
-    if den > 0.0:
-        return math.sqrt(num / den)
-    return 0.0 if num == 0.0 else np.inf
+    return _relative_change(num, den, 1.0)
 
