@@ -34,8 +34,8 @@ temporary name, then renamed):
    ``tile_settle_steps`` steps at tol 1e-4 at theta = 0 (the seams relax), then 20 untimed tilt
    steps at the timed tolerance, then ``scaling_steps`` timed tilt steps, each timed alone:
    median ms per step, ns per contact update (time / local solves made,
-   ``StepRecord.updates``), sweeps per step. The default sweep (``solver.sweep``, interleaved) relax 1 with the default overlap slop
-   at every N; at ``variant_ns`` also, from the same state: forward relax 1 with the slop (the
+   ``StepRecord.updates``), sweeps per step. The default sweep (``solver.sweep``, interleaved)
+   relax 1 with the default overlap slop at every N; at ``variant_ns`` also, from the same state: forward relax 1 with the slop (the
    key order, the default before the interleaved sweep), random relax 1 with slop 0 (plain NLGS
    with the plain gap term, the reference of issue 6), forward relax 1 with slop 0, and forward
    relax 1.5 (projected SOR). Last, the cost of a step of the default sweep at exactly

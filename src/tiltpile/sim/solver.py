@@ -45,14 +45,16 @@ grain left; omega >= 1.7 can oscillate between sticking and sliding states and h
 Pruned sweeps (``prune``; ``solver.prune``, on by default). ~30% of the candidate contacts are
 open (alert distance 0.1 d); 17-18% of all candidates in the paper run are open with a gap that
 nothing in the pile closes within a step. Their local solve gives p = 0 and changes nothing,
-yet costs a full update in every sweep. A step still unconverged after PRUNE_AFTER sweeps sweeps a compacted list without
-them, with a full sweep every PRUNE_EVERY sweeps and at the cap, and ends on the compacted list
-only if none of them would now overlap. The sweeps are then those of the full list bit for bit,
-as long as none of the left-out contacts closes during the step: measured over 20 capped steps
-at 12, 17 and 24 deg of the paper run (0.68-0.85x the time per step), in the smoke
-deposition of seed 1 (10 000 steps), the figure and stability tests, and
-``tests/test_pruned_sweeps.py``. A contact that does close is caught at the end and the step
-goes on with full sweeps: as converged, but the iterates differ from then on.
+yet costs a full update in every sweep. A step still unconverged after PRUNE_AFTER sweeps
+sweeps a compacted list without them, with a full sweep every PRUNE_EVERY sweeps and at the
+cap, and ends on the compacted list only if none of them would now overlap. The sweeps are then
+those of the full list bit for bit, as long as none of the left-out contacts closes during the
+step: measured over 20 capped steps at 12, 17 and 24 deg of the paper run (0.68-0.85x the time
+per step), the whole paper run of seed 0, 10 000 steps of the seed-1 smoke pile settling at
+theta = 0, ``make figures`` and ``tests/test_pruned_sweeps.py``. A left-out contact that would
+overlap at the end is caught and the step goes on with full sweeps; one that closes and opens
+again in between is not. Either way the result is as converged, but the iterates differ from
+the full sweeps' from then on.
 
 Convergence: the relative L2 change of the impulses over one sweep, divided by omega,
     r = sqrt(sum |p^k - p^(k-1)|^2 / sum |p^k|^2) / omega,
@@ -82,8 +84,9 @@ OPEN, STICK, SLIDE = 0, 1, 2
 # step that has not converged sweeps only the contacts that can act, with a full sweep every
 # PRUNE_EVERY sweeps and as the last one at the cap. PRUNE_MARGIN [d / sqrt(d/g)]: an open contact
 # is left out when u_n + b > PRUNE_MARGIN (a gap of more than 0.01 d that is not closing, at
-# dt = 0.01); 100 g dt. At 0.1 a grain falling in the smoke deposition of seed 1 closed one
-# left-out contact (step 298; caught, the step went on with full sweeps); at 1.0 none did.
+# dt = 0.01); 100 g dt. At 0.1 the seed-1 smoke pile settling at theta = 0 parted from the full
+# sweeps at step 298 (a left-out contact closed; 188 sweeps instead of 186); at 1.0 it did not
+# in 10 000 steps.
 PRUNE_AFTER = 20
 PRUNE_EVERY = 100
 PRUNE_MARGIN = 1.0
