@@ -12,7 +12,7 @@ import pytest
 
 from simhelpers import assert_same_run
 from tiltpile import config, store
-from tiltpile.analysis.contacts import contact_gaps, lost_contacts
+from tiltpile.analysis.observables import lost_between
 from tiltpile.runner import simulate
 from tiltpile.sim import protocol
 from tiltpile.store import checkpoint_path, open_run, part_path
@@ -50,10 +50,10 @@ def _lost_fraction(run, k, lost_gap=None):
     definition); with ``lost_gap`` [d] they must also have opened by more than that at k + 1."""
     pa, fa, _ = run.contacts(k)
     pb, fb, _ = run.contacts(k + 1)
-    lost = lost_contacts(pa, fa[:, 0] > 0, pb, fb[:, 0] > 0, run.radius.size)
-    if lost_gap is not None:
-        lost &= contact_gaps(pa, run.position(k + 1), run.radius, run.box_length) > lost_gap
-    return lost.sum() / max(1, (fa[:, 0] > 0).sum())
+    prev = {"pair": pa, "active": fa[:, 0] > 0}
+    cur = {"pair": pb, "active": fb[:, 0] > 0, "position": run.position(k + 1)}
+    lost = lost_between(prev, cur, run.radius.size, run.radius, run.box_length, lost_gap)
+    return lost.sum() / max(1, prev["active"].sum())
 
 
 def _lost_series(path, lost_gap=None):
