@@ -33,3 +33,30 @@ def test_flow_caps_refuses_bad_arguments(smoke_run):
     path, _ = smoke_run
     with pytest.raises(SystemExit):
         flow_caps.main([str(path), "110", "0"])
+
+
+def test_one_step_profile_on_the_smoke_run(smoke_run, capsys):
+    """--one-step from frame 110: the largest cap is the reference; a cap the step does not
+    reach (it converges to the smoke tol first) gives the reference bit for bit; a starved step
+    (2 sweeps) ends farther from it in velocities and impulses."""
+    path, _ = smoke_run
+    rows = flow_caps.main([str(path), "110", "--one-step", "--warm", "2", "2", "20000", "5000"])
+    out = capsys.readouterr().out
+    assert "one step per max_iter" in out
+    assert [r["max_iter"] for r in rows] == [20000, 5000, 2]  # sorted, largest first
+    ref, unreached, starved = rows
+    assert ref["sweeps"] < 5000  # converged to tol: both larger caps make the same step
+    assert unreached["sweeps"] == ref["sweeps"]
+    for k in ("dv_rel", "dx_max", "dp_rel", "status_changed"):
+        assert ref[k] == 0 and unreached[k] == 0
+    assert starved["sweeps"] == 2
+    assert starved["dv_rel"] > 0 and starved["dp_rel"] > 0
+    assert starved["natural_residual"] > ref["natural_residual"]
+
+
+def test_one_step_refuses_a_single_cap(smoke_run):
+    path, _ = smoke_run
+    with pytest.raises(SystemExit):
+        flow_caps.main([str(path), "110", "--one-step", "1000"])
+    with pytest.raises(SystemExit):
+        flow_caps.main([str(path), "110", "--one-step", "1000", "0"])

@@ -1,6 +1,7 @@
 """The iteration cap in a flowing pile: cost and error of NLGS settings from one frame of a run.
 
 Usage: python -m tiltpile.perf.flow_caps RUN FRAME STEPS [--warm W] [variant ...]
+       python -m tiltpile.perf.flow_caps RUN FRAME --one-step [--warm W] [max_iter ...]
   RUN    a run file (``tiltpile simulate``); FRAME its frame index, e.g. 340 = 17 deg in the
          paper preset (a frame every 0.05 deg)
   STEPS  steps per variant
@@ -16,6 +17,15 @@ process. Per variant: ms per step, the median natural residual of the steps'
 end states (solver.natural_residual), the mean kinetic energy per grain, the mean displacement
 of the mobile grains over the STEPS steps and its change against the first variant, and the
 mean distance between their final positions and those of the first variant.
+
+``--one-step``: how far one step's solve is from converged after a given number of sweeps.
+From the same state, one step at each max_iter (default 20000 5000 2000 1000 500 300 200 100;
+the largest is the reference); per cap: the sweeps made, the natural residual, and the distance
+of the end-of-step velocities and impulses from the reference's (rms over the mobile grains and
+over the contacts, relative to the reference's rms), the largest velocity difference times dt
+(the position error the step leaves) and the contacts whose state (open, sticking, sliding)
+differs. The contact list is the same for every cap: a rebuild is decided before the solve.
+
 README "Speed and accuracy" lists what it measured on the paper run.
 """
 from __future__ import annotations
@@ -32,6 +42,7 @@ from tiltpile.sim.solver import natural_residual
 from tiltpile.store import open_run
 
 DEFAULT_VARIANTS = ("20000", "1000", "500", "300", "200", "100")
+DEFAULT_ONE_STEP = ("20000", "5000", "2000", "1000", "500", "300", "200", "100")
 
 
 def rebuilt_state(run_path, frame: int, warm: int):
@@ -82,17 +93,64 @@ def measure(cfg, seed: int, theta, state, steps: int, variants) -> list[dict]:
     return rows
 
 
+def one_step(cfg, seed: int, theta, state, caps) -> list[dict]:
+    """One row per cap (module docstring, ``--one-step``), against the largest cap."""
+    caps = sorted({int(k) for k in caps}, reverse=True)
+    s = protocol.make_system(cfg, seed)
+    mob = ~s.fixed
+    ends = []
+    for cap in caps:
+        s.restore(state)
+        s.params.update(max_iter=cap)
+        rec = s.advance(1, theta, cfg.protocol.tilt_per_step_deg)
+        ends.append((cap, int(rec.iterations[0]), natural_residual(s.ci, s.cj, s.c, s.vel),
+                     s.vel[: s.n][mob, :3].copy(), s.c[:, 6:8].copy(), s.status.copy()))
+    _, _, _, v_ref, p_ref, st_ref = ends[0]
+
+    def rms(x):
+        return float(np.sqrt(np.mean(x * x)))
+
+    rows = []
+    for cap, sweeps, nat, v, p, st in ends:
+        if p.shape != p_ref.shape:  # cannot happen: the rebuild is decided before the solve
+            raise RuntimeError("the contact list differs between caps")
+        dv = v - v_ref
+        rows.append(dict(max_iter=cap, sweeps=sweeps, natural_residual=nat,
+                         dv_rel=rms(dv[:, :2]) / rms(v_ref[:, :2]),
+                         dx_max=float(np.abs(dv[:, :2]).max()) * cfg.solver.dt,
+                         dp_rel=rms(p - p_ref) / rms(p_ref), status_changed=int((st != st_ref).sum())))
+    return rows
+
+
 def main(argv=None) -> list[dict]:
     ap = argparse.ArgumentParser(prog="python -m tiltpile.perf.flow_caps",
                                  description=__doc__.splitlines()[0])
     ap.add_argument("run")
     ap.add_argument("frame", type=int)
-    ap.add_argument("steps", type=int)
+    ap.add_argument("steps", type=int, nargs="?")
     ap.add_argument("--warm", type=int, default=10)
-    ap.add_argument("variants", nargs="*", default=list(DEFAULT_VARIANTS))
+    ap.add_argument("--one-step", action="store_true",
+                    help="one step at each max_iter given, against the largest")
+    ap.add_argument("variants", nargs="*")
     a = ap.parse_intermixed_args(argv)
-    if a.steps < 1 or a.warm < 0:
+    if a.one_step:
+        if a.steps is not None:  # argparse fills the optional positional first
+            a.variants.insert(0, str(a.steps))
+        caps = a.variants or list(DEFAULT_ONE_STEP)
+        if a.warm < 0 or not all(k.isdigit() and int(k) >= 1 for k in caps) or len(set(caps)) < 2:
+            ap.error("--one-step needs --warm >= 0 and at least two different max_iter >= 1")
+        cfg, seed, theta, state = rebuilt_state(a.run, a.frame, a.warm)
+        print(f"{a.run} frame {a.frame} theta {theta:.2f} deg, one step per max_iter")
+        print(f"{'max_iter':>8s} {'sweeps':>6s} {'nat.res.':>9s} {'|dv|/|v|':>9s} {'max dv dt':>9s} "
+              f"{'|dp|/|p|':>9s} {'states':>6s}")
+        rows = one_step(cfg, seed, theta, state, caps)
+        for r in rows:
+            print(f"{r['max_iter']:8d} {r['sweeps']:6d} {r['natural_residual']:9.1e} {r['dv_rel']:9.2e} "
+                  f"{r['dx_max']:9.1e} {r['dp_rel']:9.2e} {r['status_changed']:6d}", flush=True)
+        return rows
+    if a.steps is None or a.steps < 1 or a.warm < 0:
         ap.error("steps must be >= 1 and --warm >= 0")
+    a.variants = a.variants or list(DEFAULT_VARIANTS)
     cfg, seed, theta, state = rebuilt_state(a.run, a.frame, a.warm)
     print(f"{a.run} frame {a.frame} theta {theta:.2f} deg, {a.steps} steps per variant")
     print(f"{'variant':>12s} {'ms/step':>8s} {'nat.res.':>9s} {'ke/grain':>9s} {'disp [d]':>9s} "
