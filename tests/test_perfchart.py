@@ -134,3 +134,32 @@ def test_cli_rejects_single_pile_options_with_chart(tmp_path, capsys):
     assert "--n" in capsys.readouterr().err
     assert cli.main(["bench", "--quick"]) == 2
     assert not any(tmp_path.iterdir())
+
+
+def test_scaling_part_with_an_old_accuracy_table(tmp_path, monkeypatch):
+    """--parts scaling summarises an accuracy.csv already in the directory; one written before a
+    column existed is not summarised (a warning names the missing column) and the scaling part
+    still runs."""
+    import tiltpile.perfchart as pc
+
+    monkeypatch.setattr(pc, "scaling_sweep", lambda spec, progress: pd.DataFrame())
+    monkeypatch.setattr(pc, "scaling_fit", lambda sc: {})
+    monkeypatch.setattr(pc, "plot_scaling", lambda *a, **k: None)
+    monkeypatch.setattr(pc, "_atomic_csv", lambda df, path: None)
+    old = pd.DataFrame({c: [1.0] for c in ACCURACY_COLUMNS if c not in ("slop", "drift_per_deg")})
+    old.to_csv(tmp_path / "accuracy.csv", index=False)
+    with pytest.warns(UserWarning, match="lacks the column.s. slop, drift_per_deg"):
+        summary = run_chart(tmp_path, ChartSpec.quick_spec(), progress=False, parts=("scaling",))
+    assert "accuracy_points" not in summary and "accuracy_from_file" not in summary
+    assert "scaling_fit" in summary
+
+
+def test_the_committed_accuracy_table_is_read_back():
+    """figures/performance/accuracy.csv (make bench) has every column the plots read."""
+    from pathlib import Path
+
+    from tiltpile.perfchart import read_accuracy
+
+    path = Path(__file__).resolve().parents[1] / "figures" / "performance" / "accuracy.csv"
+    acc = read_accuracy(path)
+    assert acc is not None and list(acc.columns) == ACCURACY_COLUMNS and len(acc) > 0

@@ -541,13 +541,16 @@ def _point_label(r) -> str:
     return lab if r["slop"] == DEFAULT_SLOP else f"{lab}/s{r['slop']:g}"
 
 
-def _with_slop(acc: pd.DataFrame) -> pd.DataFrame:
-    """An accuracy table written before the slop and drift columns existed (all its points ran
-    at the then default slop)."""
-    if "slop" not in acc:
-        acc = acc.assign(slop=DEFAULT_SLOP)
-    if "drift_per_deg" not in acc:
-        acc = acc.assign(drift_per_deg=np.nan)
+def read_accuracy(path: Path) -> pd.DataFrame | None:
+    """The accuracy table an earlier chart left in ``path``, or None with a warning when it lacks
+    one of ``ACCURACY_COLUMNS`` (written by an older tiltpile, before that column was measured)."""
+    acc = pd.read_csv(path)
+    missing = [c for c in ACCURACY_COLUMNS if c not in acc]
+    if missing:
+        warnings.warn(f"{path} lacks the column(s) {', '.join(missing)} (written by an older "
+                      "tiltpile): not summarised; rerun the chart with --parts accuracy",
+                      stacklevel=2)
+        return None
     return acc
 
 
@@ -698,11 +701,14 @@ def run_chart(outdir, spec: ChartSpec | None = None, progress: bool = True,
         summary["timings_s"]["accuracy"] = time.perf_counter() - t0
         summary["files"] += ["accuracy.csv", "pareto.png"]
     elif (out / "accuracy.csv").exists():  # --parts scaling: summarise the accuracy run on disk
-        acc = _with_slop(pd.read_csv(out / "accuracy.csv"))
-        plot_pareto(acc, out / "pareto.png", spec.hold_deg, spec.tilt_per_step)
-        summary["accuracy_from_file"] = True
-        summary["files"] += ["accuracy.csv", "pareto.png"]
-    if "accuracy" in parts or (out / "accuracy.csv").exists():
+        acc = read_accuracy(out / "accuracy.csv")
+        if acc is not None:
+            plot_pareto(acc, out / "pareto.png", spec.hold_deg, spec.tilt_per_step)
+            summary["accuracy_from_file"] = True
+            summary["files"] += ["accuracy.csv", "pareto.png"]
+    else:
+        acc = None
+    if acc is not None:
         agg = aggregate_points(acc)
         summary["accuracy_points"] = json.loads(agg.to_json(orient="records"))
         for name, col in (("pareto_front_creep", "creep_mean"),
