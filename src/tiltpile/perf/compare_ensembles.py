@@ -1,0 +1,106 @@
+"""Does a setting change the physics? The onset angle and the quiet contact network of ensembles
+that differ in one setting, against the first.
+
+Usage: python -m tiltpile.perf.compare_ensembles DIR [DIR ...]
+  DIR  an ensemble directory (``tiltpile ensemble ... --out DIR``); its observables are computed
+       if missing (``tiltpile observables``). The first DIR is the reference.
+
+Per ensemble: the configuration keys that differ from the reference's; the runs; the first onset
+theta_m of each run (Fig. 2's definition, :func:`tiltpile.figures.fig2.first_onsets`) with its
+mean, standard deviation and standard error; the mean coordination z and mobilized fraction n_m
+over the quiet frames and the fraction of avalanching frames (as ``fig2.compute``); and the
+difference of mean theta_m from the reference with Welch's t-test (two-sided p). Different
+settings usually deposit different piles, so the comparison is between ensembles, not run by
+run: with ~6 runs and a seed-to-seed spread of ~2 deg only shifts of 2-3 deg stand out.
+README "Speed and accuracy" lists what it measured (the time step at the default scale).
+"""
+from __future__ import annotations
+
+import argparse
+import sys
+
+import numpy as np
+
+
+def config_diff(ref: dict, cfg: dict, prefix: str = "") -> dict:
+    """{"section.key": (ref value, value)} for every key whose value differs (or is missing)."""
+    out = {}
+    for k in sorted(set(ref) | set(cfg)):
+        a, b = ref.get(k), cfg.get(k)
+        name = f"{prefix}{k}"
+        if isinstance(a, dict) and isinstance(b, dict):
+            out.update(config_diff(a, b, name + "."))
+        elif a != b:
+            out[name] = (a, b)
+    return out
+
+
+def summarize(ens) -> dict:
+    """The numbers of one ensemble (module docstring)."""
+    from tiltpile.figures.fig2 import first_onsets
+
+    f = ens.frames
+    th = first_onsets(f, ens.seeds)
+    ok = th[np.isfinite(th)]
+    av = f["avalanching"].to_numpy(bool)
+    q = f[~av]
+    return dict(config=ens.config, seeds=list(ens.seeds), theta_m=th,
+                n_onset=int(ok.size),
+                theta_m_mean=float(ok.mean()) if ok.size else np.nan,
+                theta_m_std=float(ok.std(ddof=1)) if ok.size > 1 else np.nan,
+                theta_m_sem=float(ok.std(ddof=1) / np.sqrt(ok.size)) if ok.size > 1 else np.nan,
+                z_quiet=float(q["z"].mean()), n_m_quiet=float(q["n_m"].mean()),
+                avalanching_fraction=float(av.mean()) if av.size else np.nan)
+
+
+def welch(a, b) -> tuple[float, float]:
+    """(mean(b) - mean(a), two-sided p of Welch's t-test); NaN where either has < 2 values."""
+    from scipy import stats
+
+    a = np.asarray(a, float)
+    b = np.asarray(b, float)
+    a, b = a[np.isfinite(a)], b[np.isfinite(b)]
+    if a.size < 2 or b.size < 2:
+        return np.nan, np.nan
+    if np.array_equal(np.sort(a), np.sort(b)):
+        return 0.0, 1.0
+    return float(b.mean() - a.mean()), float(stats.ttest_ind(a, b, equal_var=False).pvalue)
+
+
+def compare(dirs) -> list[dict]:
+    """One row per directory: ``summarize`` plus ``diff`` (config keys) and ``shift``, ``p``
+    against the first."""
+    from tiltpile.figures.data import load_ensemble
+
+    rows = []
+    for d in dirs:
+        row = summarize(load_ensemble(d))
+        row["dir"] = str(d)
+        ref = rows[0] if rows else row
+        row["diff"] = config_diff(ref["config"], row["config"])
+        row["shift"], row["p"] = welch(ref["theta_m"], row["theta_m"])
+        rows.append(row)
+    return rows
+
+
+def main(argv=None) -> list[dict]:
+    ap = argparse.ArgumentParser(prog="python -m tiltpile.perf.compare_ensembles",
+                                 description=__doc__.splitlines()[0])
+    ap.add_argument("dirs", nargs="+", help="ensemble directories; the first is the reference")
+    a = ap.parse_args(argv)
+    rows = compare(a.dirs)
+    for k, r in enumerate(rows):
+        diff = ", ".join(f"{key} = {v[1]!r} (ref {v[0]!r})" for key, v in r["diff"].items())
+        diff = diff or ("reference" if k == 0 else "the reference's configuration")
+        th = " ".join("-" if not np.isfinite(x) else f"{x:.2f}" for x in r["theta_m"])
+        print(f"{r['dir']}: {diff}")
+        print(f"  runs {len(r['seeds'])} (seeds {r['seeds']}), onsets {r['n_onset']}: theta_m {th}")
+        print(f"  theta_m mean {r['theta_m_mean']:.2f} +- {r['theta_m_sem']:.2f} deg (std "
+              f"{r['theta_m_std']:.2f}); shift {r['shift']:+.2f} deg, Welch p {r['p']:.2f}")
+        print(f"  quiet frames: z {r['z_quiet']:.4f}, n_m {r['n_m_quiet']:.4f}; avalanching "
+              f"{r['avalanching_fraction']:.3f} of the frames", flush=True)
+    return rows
+
+
+if __name__ == "__main__":
+    main(sys.argv[1:])
