@@ -48,7 +48,8 @@ def test_compare_two_copies_of_the_smoke_run(smoke_run, tmp_path, capsys):
     ref, again = rows
     ens = load_ensemble(dirs[0])
     assert np.array_equal(ref["theta_m"], first_onsets(ens.frames, ens.seeds), equal_nan=True)
-    assert ref["n_onset"] == 1 and 5.0 < ref["theta_m_mean"] < 30.0
+    assert ref["n_onset"] == 1 and 5.0 < ref["theta_m_mean"] < 30.0 and np.isnan(ref["theta_m_sem"])
     assert again["diff"] == {} and again["theta_m_mean"] == ref["theta_m_mean"]
-    assert again["z_quiet"] == ref["z_quiet"] and again["n_m_quiet"] == ref["n_m_quiet"]
-    assert np.isnan(again["p"])  # one run each: no test
+    assert again["z_quiet_mean"] == ref["z_quiet_mean"] and again["n_m_quiet_mean"] == ref["n_m_quiet_mean"]
+    assert np.isnan(again["theta_m_p"]) and np.isnan(again["z_quiet_p"])  # one run each: no test
+    assert 2.5 < ref["z_quiet_mean"] < 4.0 and 0.0 <= ref["n_m_quiet_mean"] <= 1.0

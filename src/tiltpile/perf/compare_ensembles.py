@@ -5,11 +5,11 @@ Usage: python -m tiltpile.perf.compare_ensembles DIR [DIR ...]
   DIR  an ensemble directory (``tiltpile ensemble ... --out DIR``); its observables are computed
        if missing (``tiltpile observables``). The first DIR is the reference.
 
-Per ensemble: the configuration keys that differ from the reference's; the runs; the first onset
-theta_m of each run (Fig. 2's definition, :func:`tiltpile.figures.fig2.first_onsets`) with its
-mean, standard deviation and standard error; the mean coordination z and mobilized fraction n_m
-over the quiet frames and the fraction of avalanching frames (as ``fig2.compute``); and the
-difference of mean theta_m from the reference with Welch's t-test (two-sided p). Different
+Per ensemble: the configuration keys that differ from the reference's; the runs; three numbers
+per run: the first onset theta_m (Fig. 2's definition, :func:`tiltpile.figures.fig2.first_onsets`)
+and the mean coordination z and mobilized fraction n_m over the run's quiet frames; their mean
+over the runs with its standard error, and the difference from the reference's with Welch's
+t-test (two-sided p); and the fraction of avalanching frames. Different
 settings usually deposit different piles, so the comparison is between ensembles, not run by
 run: with ~6 runs and a seed-to-seed spread of ~2 deg only shifts of 2-3 deg stand out.
 README "Speed and accuracy" lists what it measured (the time step at the default scale).
@@ -35,22 +35,29 @@ def config_diff(ref: dict, cfg: dict, prefix: str = "") -> dict:
     return out
 
 
+METRICS = ("theta_m", "z_quiet", "n_m_quiet")
+
+
 def summarize(ens) -> dict:
-    """The numbers of one ensemble (module docstring)."""
+    """The numbers of one ensemble (module docstring): per metric the per-run values (seeds in
+    ``ens.seeds`` order, NaN where a run has none), ``<metric>_mean`` and ``<metric>_sem``."""
     from tiltpile.figures.fig2 import first_onsets
 
     f = ens.frames
-    th = first_onsets(f, ens.seeds)
-    ok = th[np.isfinite(th)]
     av = f["avalanching"].to_numpy(bool)
-    q = f[~av]
-    return dict(config=ens.config, seeds=list(ens.seeds), theta_m=th,
-                n_onset=int(ok.size),
-                theta_m_mean=float(ok.mean()) if ok.size else np.nan,
-                theta_m_std=float(ok.std(ddof=1)) if ok.size > 1 else np.nan,
-                theta_m_sem=float(ok.std(ddof=1) / np.sqrt(ok.size)) if ok.size > 1 else np.nan,
-                z_quiet=float(q["z"].mean()), n_m_quiet=float(q["n_m"].mean()),
-                avalanching_fraction=float(av.mean()) if av.size else np.nan)
+    quiet = f[~av].groupby("run")[["z", "n_m"]].mean()
+    per_run = {"theta_m": first_onsets(f, ens.seeds),
+               "z_quiet": np.array([quiet["z"].get(s, np.nan) for s in ens.seeds], float),
+               "n_m_quiet": np.array([quiet["n_m"].get(s, np.nan) for s in ens.seeds], float)}
+    out = dict(config=ens.config, seeds=list(ens.seeds),
+               avalanching_fraction=float(av.mean()) if av.size else np.nan)
+    for name, x in per_run.items():
+        ok = x[np.isfinite(x)]
+        out[name] = x
+        out[f"{name}_mean"] = float(ok.mean()) if ok.size else np.nan
+        out[f"{name}_sem"] = float(ok.std(ddof=1) / np.sqrt(ok.size)) if ok.size > 1 else np.nan
+    out["n_onset"] = int(np.isfinite(per_run["theta_m"]).sum())
+    return out
 
 
 def welch(a, b) -> tuple[float, float]:
@@ -78,7 +85,8 @@ def compare(dirs) -> list[dict]:
         row["dir"] = str(d)
         ref = rows[0] if rows else row
         row["diff"] = config_diff(ref["config"], row["config"])
-        row["shift"], row["p"] = welch(ref["theta_m"], row["theta_m"])
+        for m in METRICS:
+            row[f"{m}_shift"], row[f"{m}_p"] = welch(ref[m], row[m])
         rows.append(row)
     return rows
 
@@ -94,11 +102,11 @@ def main(argv=None) -> list[dict]:
         diff = diff or ("reference" if k == 0 else "the reference's configuration")
         th = " ".join("-" if not np.isfinite(x) else f"{x:.2f}" for x in r["theta_m"])
         print(f"{r['dir']}: {diff}")
-        print(f"  runs {len(r['seeds'])} (seeds {r['seeds']}), onsets {r['n_onset']}: theta_m {th}")
-        print(f"  theta_m mean {r['theta_m_mean']:.2f} +- {r['theta_m_sem']:.2f} deg (std "
-              f"{r['theta_m_std']:.2f}); shift {r['shift']:+.2f} deg, Welch p {r['p']:.2f}")
-        print(f"  quiet frames: z {r['z_quiet']:.4f}, n_m {r['n_m_quiet']:.4f}; avalanching "
-              f"{r['avalanching_fraction']:.3f} of the frames", flush=True)
+        print(f"  runs {len(r['seeds'])} (seeds {r['seeds']}), onsets {r['n_onset']}: theta_m {th}; "
+              f"avalanching {r['avalanching_fraction']:.3f} of the frames")
+        for m, unit, fmt in (("theta_m", " deg", ".2f"), ("z_quiet", "", ".4f"), ("n_m_quiet", "", ".4f")):
+            print(f"  {m:9s} {r[m + '_mean']:{fmt}} +- {r[m + '_sem']:{fmt}}{unit}   shift "
+                  f"{r[m + '_shift']:+{fmt}}, Welch p {r[m + '_p']:.2f}", flush=True)
     return rows
 
 
