@@ -12,7 +12,7 @@ over the runs with its standard error, and the difference from the reference's w
 t-test (two-sided p); and the fraction of avalanching frames. Different
 settings usually deposit different piles, so the comparison is between ensembles, not run by
 run: with ~6 runs and a seed-to-seed spread of ~2 deg only shifts of 2-3 deg stand out.
-README "Speed and accuracy" lists what it measured (the time step at the default scale).
+README "Speed and accuracy" lists what it measured (time step and tolerance at the default scale).
 """
 from __future__ import annotations
 
@@ -69,14 +69,14 @@ def welch(a, b) -> tuple[float, float]:
     a, b = a[np.isfinite(a)], b[np.isfinite(b)]
     if a.size < 2 or b.size < 2:
         return np.nan, np.nan
-    if np.array_equal(np.sort(a), np.sort(b)):
-        return 0.0, 1.0
+    if np.array_equal(np.sort(a), np.sort(b)):  # scipy gives p = 1 here too, but NaN (and a
+        return 0.0, 1.0                          # warning) when the values are all equal
     return float(b.mean() - a.mean()), float(stats.ttest_ind(a, b, equal_var=False).pvalue)
 
 
 def compare(dirs) -> list[dict]:
-    """One row per directory: ``summarize`` plus ``diff`` (config keys) and ``shift``, ``p``
-    against the first."""
+    """One row per directory: ``summarize`` plus ``diff`` (config keys) and, per metric of
+    ``METRICS``, ``<metric>_shift`` and ``<metric>_p`` against the first (``welch``)."""
     from tiltpile.figures.data import load_ensemble
 
     rows = []
