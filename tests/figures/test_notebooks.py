@@ -4,11 +4,11 @@ The session fixture simulates three smoke piles (seeds 1-3) through the ensemble
 `make figures PRESET=smoke` would. Each notebook then runs on them exactly as `make figures` runs
 it (same kernel, same parameters, working directory the repository) and writes its PDF, PNG and
 JSON to a temporary directory. The JSON numbers are compared with the baselines in
-``tests/test_figures/`` (pytest-regressions; regenerate with ``--force-regen`` only for an
+``tests/figures/test_notebooks/`` (pytest-regressions; regenerate with ``--force-regen`` only for an
 understood change, and say why in the commit message).
 
 Tolerance: rtol 1e-7, atol 1e-10. The simulation is deterministic (same seed and config give
-bit-identical run files on this machine; tests/test_run.py), so the only legitimate differences
+bit-identical run files on this machine; tests/workflow/test_run.py), so the only legitimate differences
 are floating-point summation order in pandas/numpy reductions (~1e-15 relative) and the last digit
 of text round trips. A change in the physics, the analysis or a figure's definition moves these
 numbers by far more than 1e-7 and must show up here. Floating-point results are not expected to
@@ -31,7 +31,7 @@ import nbformat
 import numpy as np
 import pytest
 
-ROOT = Path(__file__).resolve().parents[1]
+ROOT = Path(__file__).resolve().parents[2]
 NOTEBOOK_DIR = ROOT / "notebooks"
 NOTEBOOKS = sorted(NOTEBOOK_DIR.glob("fig*.ipynb"))
 PAPER = next((ROOT / "paper").glob("*.tex"))

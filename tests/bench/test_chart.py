@@ -160,6 +160,6 @@ def test_the_committed_accuracy_table_is_read_back():
 
     from tiltpile.perfchart import read_accuracy
 
-    path = Path(__file__).resolve().parents[1] / "figures" / "performance" / "accuracy.csv"
+    path = Path(__file__).resolve().parents[2] / "figures" / "performance" / "accuracy.csv"
     acc = read_accuracy(path)
     assert acc is not None and list(acc.columns) == ACCURACY_COLUMNS and len(acc) > 0

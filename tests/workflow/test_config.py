@@ -71,7 +71,7 @@ def test_readme_lists_every_configuration_key():
     import re
     from pathlib import Path
 
-    text = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    text = (Path(__file__).resolve().parents[2] / "README.md").read_text()
     for section, cls in (("scene", config.SceneConfig), ("solver", config.SolverConfig),
                          ("protocol", config.ProtocolConfig), ("health", config.HealthConfig)):
         listed = re.search(rf"`{section}\.\{{([^}}]*)\}}`", text)
