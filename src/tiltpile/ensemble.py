@@ -60,7 +60,6 @@ the next invocation.
 
 from __future__ import annotations
 
-import argparse
 import contextlib
 import datetime as _dt
 import json
@@ -273,18 +272,10 @@ def _run_one(config: Config, seed: int, path: str, topic: str) -> dict:
     if Path(path).exists():  # finished meanwhile (by a task of an earlier, killed client)
         return {"seed": seed, "path": path, "started": started, "finished": _now(), "worker": address,
                 "seconds": 0.0, "skipped": True}
-    kwargs = {}
-    if log is not None and _accepts(simulate, "on_progress"):
-        kwargs["on_progress"] = _progress_sender(log, topic, seed)
-    summary = simulate(config, seed, path, progress=False, resume=True, **kwargs)
+    on_progress = _progress_sender(log, topic, seed) if log is not None else None
+    summary = simulate(config, seed, path, progress=False, resume=True, on_progress=on_progress)
     summary.update(started=started, finished=_now(), worker=address, numba_cache_misses=_cache_misses())
     return summary
-
-
-def _accepts(fn, name: str) -> bool:
-    import inspect
-
-    return name in inspect.signature(fn).parameters
 
 
 def _progress_sender(log, topic: str, seed: int, every: float = 2.0):
@@ -501,71 +492,3 @@ def _report(manifest: dict, seeds: list[int], progress: bool, out_dir: Path) -> 
     st = [manifest["runs"].get(str(s), {}).get("status", "pending") for s in seeds]
     print(f"ensemble {out_dir}: {st.count('done')} done, {st.count('failed')} failed of {len(seeds)} runs",
           file=sys.stderr)
-
-
-# -- command line -----------------------------------------------------------------------------------
-
-def _add_arguments(p: argparse.ArgumentParser) -> None:
-    from tiltpile.cli import _add_config_args, _seed
-
-    _add_config_args(p)
-    p.add_argument("--runs", type=int, required=True, metavar="M", help="number of runs (seeds S..S+M-1)")
-    p.add_argument("--first-seed", type=_seed, default=0, metavar="S", help="first seed (default 0)")
-    p.add_argument("--out", type=Path, required=True, metavar="DIR",
-                   help="ensemble directory: DIR/run_SSSS.h5 and the manifest DIR/ensemble.json")
-    p.add_argument("--scheduler", metavar="ADDRESS",
-                   help="address of a running dask scheduler (tcp://host:port); default: a LocalCluster")
-    p.add_argument("--workers", type=int, metavar="W",
-                   help="LocalCluster worker processes (default: one per core, at most one per run)")
-    p.add_argument("--quiet", action="store_true", help="no progress bar")
-
-
-def add_parser(subparsers) -> argparse.ArgumentParser:
-    """Register ``ensemble`` on the ``tiltpile`` command's subparsers; ``func`` is ``cmd_ensemble``."""
-    p = subparsers.add_parser("ensemble", help="run many seeds (resumable) on dask.distributed",
-                              description=__doc__.splitlines()[0])
-    _add_arguments(p)
-    p.set_defaults(func=cmd_ensemble)
-    return p
-
-
-def cmd_ensemble(args) -> int:
-    """Validate, run, print a one-line JSON summary; 0 if every run is done, 1 if any failed."""
-    from tiltpile.cli import _load_config
-
-    if args.runs < 1:
-        raise ConfigError(f"--runs must be at least 1, got {args.runs}")
-    if args.workers is not None and args.workers < 1:
-        raise ConfigError(f"--workers must be at least 1, got {args.workers}")
-    if args.workers is not None and args.scheduler is not None:
-        raise ConfigError("--workers sizes the LocalCluster; with --scheduler the cluster brings its own")
-    cfg = _load_config(args)
-    seeds = range(args.first_seed, args.first_seed + args.runs)
-    manifest = run_ensemble(cfg, seeds, args.out, scheduler=args.scheduler, workers=args.workers,
-                            progress=not args.quiet)
-    failed = [s for s in failed_runs(manifest) if s in seeds]
-    print(json.dumps({"out": str(args.out), "manifest": str(Path(args.out) / MANIFEST), "runs": len(seeds),
-                      "done": sum(manifest["runs"][str(s)]["status"] == "done" for s in seeds),
-                      "failed": failed}))
-    return 1 if failed else 0
-
-
-def main(argv: list[str] | None = None) -> int:
-    """``python -m tiltpile.ensemble ...``: the ``ensemble`` command on its own."""
-    p = argparse.ArgumentParser(prog="tiltpile ensemble", description=__doc__.splitlines()[0])
-    _add_arguments(p)
-    args = p.parse_args(argv)
-    try:
-        return cmd_ensemble(args)
-    except ConfigError as e:
-        print(f"tiltpile ensemble: error: {e}", file=sys.stderr)
-        return 2
-    except KeyboardInterrupt:
-        print("interrupted; unfinished runs stay as run_SSSS.h5.part and resume next time", file=sys.stderr)
-        return 130
-
-
-if __name__ == "__main__":
-    from tiltpile.ensemble import main as _main  # the importable module, so workers can unpickle tasks
-
-    raise SystemExit(_main())

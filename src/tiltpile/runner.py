@@ -25,8 +25,9 @@ from tiltpile.store import RunWriter
 
 
 def simulate(config, seed: int, out: str | Path, *, progress: bool | str = True,
-             resume: bool = True, position: int = 0) -> dict:
-    """Simulate one pile into ``out``; ``progress`` True for a terminal bar, "log" for lines."""
+             resume: bool = True, position: int = 0, on_progress=None) -> dict:
+    """Simulate one pile into ``out``; ``progress`` True for a terminal bar, "log" for lines;
+    ``on_progress`` (optional) is called with every ``protocol.Progress`` event."""
     out = Path(out)
     t0 = time.perf_counter()
     resumed = RunWriter.resume(out, config.hash()) if resume else None
@@ -50,6 +51,8 @@ def simulate(config, seed: int, out: str | Path, *, progress: bool | str = True,
                 writer.write_deposition(ev)
             elif isinstance(ev, protocol.Progress):
                 bar.update(ev)
+                if on_progress is not None:
+                    on_progress(ev)
         report = health.summarize(writer.frame_columns(health.COLUMNS), writer.deposition_attrs(),
                                   config, writer.n_mobile)
         writer.write_health(report)

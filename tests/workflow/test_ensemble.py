@@ -24,7 +24,10 @@ import pytest
 from simhelpers import assert_same_run
 from tiltpile import config
 from tiltpile.config import ConfigError
-from tiltpile.ensemble import MANIFEST, add_parser, cmd_ensemble, main, run_ensemble, run_file
+from tiltpile.cli import main as _tiltpile_main
+from tiltpile.cli.ensemble import add_parser
+from tiltpile.cli.ensemble import run as cmd_ensemble
+from tiltpile.ensemble import MANIFEST, run_ensemble, run_file
 from tiltpile.runner import simulate
 from tiltpile.store import checkpoint_path, open_run, part_path
 
@@ -33,6 +36,11 @@ SMALL = ["scene.n=60", "scene.box_length=10.0", "protocol.theta_max_deg=2.0"]
 KILLABLE = ["scene.n=60", "scene.box_length=10.0", "protocol.theta_max_deg=2.0", "protocol.frame_every=2",
             "protocol.checkpoint_every=5"]
 BIN = Path(sys.executable).parent
+
+
+def main(argv):
+    """The ``tiltpile ensemble`` command."""
+    return _tiltpile_main(["ensemble", *argv])
 
 
 def _cli(out, *extra, overrides=SMALL):
@@ -192,7 +200,7 @@ def _resumable(out: Path) -> dict[str, int]:
 def test_sigkill_then_rerun_is_bit_identical(tmp_path):
     cfg = config.load("smoke", overrides=KILLABLE)
     out = tmp_path / "killed"
-    cmd = [sys.executable, "-m", "tiltpile.ensemble", *_cli(out, "--runs", "2", "--workers", "2", "--quiet",
+    cmd = [sys.executable, "-m", "tiltpile", "ensemble", *_cli(out, "--runs", "2", "--workers", "2", "--quiet",
                                                             overrides=KILLABLE)]
     proc = subprocess.Popen(cmd, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
     try:
@@ -290,3 +298,15 @@ def test_progress_sender_throttles_angle_events():
     send(Progress("tilt", 10, 1.25, 3.0))
     send(Progress("tilt", 20, 1.5, 3.0))  # within the interval: dropped
     assert sent == [("t", {"seed": 7, "event": "progress", "phase": "tilt", "theta": 1.25})]
+
+def test_simulate_reports_progress_to_the_ensemble_callback(tmp_path, small_config):
+    """The ensemble's per-run angle comes from runner.simulate's on_progress (once a dead path)."""
+    from tiltpile.runner import simulate
+    from tiltpile.sim.protocol import Progress
+
+    events = []
+    simulate(small_config, 0, tmp_path / "r.h5", progress=False, on_progress=events.append)
+    assert events and all(isinstance(e, Progress) for e in events)
+    tilt = [e.theta_deg for e in events if e.phase == "tilt"]
+    assert tilt and tilt[-1] == pytest.approx(small_config.protocol.theta_max_deg)
+    assert any(e.phase == "deposit" for e in events)

@@ -1,0 +1,40 @@
+"""What every command shares: the configuration options, the seed type, and one error path.
+
+A command module (``tiltpile/cli/<name>.py``) defines ``add_parser(subparsers)`` and registers
+``func=run``; ``run(args) -> int`` returns the exit status. Bad input is reported by raising
+``ConfigError`` (``tiltpile.config``); ``tiltpile.cli.main`` turns it into one line
+``tiltpile <command>: error: ...`` and exit status 2.
+"""
+
+from __future__ import annotations
+
+import argparse
+from pathlib import Path
+
+from tiltpile import config as cfgmod
+
+ConfigError = cfgmod.ConfigError
+
+
+def add_config_args(p: argparse.ArgumentParser, default_preset: str = "smoke") -> None:
+    """``--preset``, ``--config FILE.toml``, ``--set SECTION.KEY=VALUE`` (repeatable)."""
+    p.add_argument("--preset", choices=cfgmod.PRESETS, default=default_preset, help="base configuration")
+    p.add_argument("--config", type=Path, help="TOML file overriding the preset")
+    p.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
+                   help="override one value, e.g. --set solver.dt=0.005 (repeatable)")
+
+
+def load_config(args) -> cfgmod.Config:
+    """The validated configuration of ``add_config_args``' options (raises ``ConfigError``)."""
+    return cfgmod.load(args.preset, args.config, args.overrides)
+
+
+def seed(text: str) -> int:
+    """argparse type of a seed: a non-negative integer."""
+    try:
+        v = int(text)
+    except ValueError:
+        raise argparse.ArgumentTypeError(f"seed must be a non-negative integer, got {text!r}") from None
+    if v < 0:
+        raise argparse.ArgumentTypeError(f"seed must be a non-negative integer, got {v}")
+    return v

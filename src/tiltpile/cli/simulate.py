@@ -1,0 +1,38 @@
+"""``tiltpile simulate``: deposit and tilt one pile into a run file (``tiltpile.runner.simulate``)."""
+
+from __future__ import annotations
+
+import json
+from pathlib import Path
+
+from tiltpile.cli._common import ConfigError, add_config_args, load_config, seed
+
+INTERRUPTED = "interrupted; an unfinished run file stays as NAME.h5.part and resumes next time"
+
+
+def add_parser(sub) -> None:
+    s = sub.add_parser("simulate", help="deposit and tilt one pile into a run file")
+    add_config_args(s)
+    s.add_argument("--seed", type=seed, required=True)
+    s.add_argument("--out", required=True, help="run file to write (NAME.h5; NAME.h5.part while running)")
+    s.add_argument("--force", action="store_true", help="overwrite an existing complete run file")
+    s.add_argument("--no-resume", action="store_true", help="ignore an interrupted NAME.h5.part")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")
+    s.set_defaults(func=run, interrupted=INTERRUPTED)
+
+
+def run(args) -> int:
+    """Print the run's summary as one JSON line; health warnings come as one RuntimeWarning."""
+    from tiltpile.runner import simulate
+
+    cfg = load_config(args)
+    out = Path(args.out)
+    if out.suffix != ".h5":
+        raise ConfigError(f"--out {out}: run files end in .h5")
+    if out.exists() and not args.force:
+        raise ConfigError(f"--out {out} exists; pass --force to overwrite it")
+    if out.exists():
+        out.unlink()
+    summary = simulate(cfg, args.seed, out, progress=not args.quiet, resume=not args.no_resume)
+    print(json.dumps(summary))
+    return 0
