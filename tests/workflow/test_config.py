@@ -65,16 +65,16 @@ def test_broken_toml(tmp_path):
         config.load("smoke", tmp_path / "missing.toml")
 
 
-def test_readme_lists_every_configuration_key():
-    """The README's "Configuration keys" paragraph names every field of every section."""
+def test_cli_reference_lists_every_configuration_key():
+    """docs/cli.md's "Configuration keys" paragraph names every field of every section."""
     import dataclasses
     import re
     from pathlib import Path
 
-    text = (Path(__file__).resolve().parents[2] / "README.md").read_text()
+    text = (Path(__file__).resolve().parents[2] / "docs" / "cli.md").read_text()
     for section, cls in (("scene", config.SceneConfig), ("solver", config.SolverConfig),
                          ("protocol", config.ProtocolConfig), ("health", config.HealthConfig)):
         listed = re.search(rf"`{section}\.\{{([^}}]*)\}}`", text)
-        assert listed, f"README lists no {section} keys"
+        assert listed, f"docs/cli.md lists no {section} keys"
         names = {n.strip() for n in listed.group(1).split(",")}
         assert names == {f.name for f in dataclasses.fields(cls)}, section
