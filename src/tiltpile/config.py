@@ -110,6 +110,19 @@ class ProtocolConfig:
     rest_steps: int = _f(100, lo=1, doc="... for this many consecutive steps")
     max_deposition_steps: int = _f(50_000, lo=1, doc="give up if the pile is not at rest by then")
     checkpoint_every: int = _f(20, lo=1, doc="frames between checkpoints")
+    # Preparation history: after deposition, tilt to each angle in turn at tilt_per_step_deg per
+    # step, each leg ending at rest (rest_ke for rest_steps, at most max_deposition_steps of
+    # holding); the analysed ramp then starts from 0 deg, so a history must end at 0.
+    pretilt_deg: tuple = _f((), lo=-90.0, hi=90.0,
+                            doc="tilt excursions before the analysed ramp, e.g. [15.0, -15.0, 0.0] "
+                                "(each leg at the ramp's rate, ending at rest; must end at 0.0)")
+    # End-of-run rule: the figures need the quiet periods, the onsets and the first frames of the
+    # large slide, not a pile flowing for ten more degrees.
+    end_ke: float = _f(0.0, lo=0.0, doc="end the tilt once the kinetic energy per mobile grain "
+                                         "[m g d] of the frames has stayed above this for "
+                                         "end_span_deg (a large slide); 0 tilts to theta_max_deg")
+    end_span_deg: float = _f(1.0, lo=0.0, lo_open=True, hi=90.0,
+                             doc="tilt span [deg] of consecutive frames above end_ke that ends the run")
 
 
 @dataclass(frozen=True)
@@ -162,6 +175,10 @@ class HealthConfig:
                                           "CAP_HIT_MIN_STEPS (500) steps on; 1 never stops")
 
 
+# (section, key) -> the default at which the key is left out of the canonical JSON (Config.to_json)
+LATER_KEYS = {("protocol", "pretilt_deg"): (), ("protocol", "end_ke"): 0.0,
+              ("protocol", "end_span_deg"): 1.0}
+
 SECTIONS = {"scene": SceneConfig, "solver": SolverConfig, "protocol": ProtocolConfig,
             "health": HealthConfig}
 
@@ -177,7 +194,13 @@ class Config:
         return dataclasses.asdict(self)
 
     def to_json(self) -> str:
-        return json.dumps(self.to_dict(), sort_keys=True)
+        """Canonical JSON. Keys added after the first release (``LATER_KEYS``) appear only when set
+        away from their default, so a configuration that does not use them keeps its hash."""
+        d = self.to_dict()
+        for (section, key), default in LATER_KEYS.items():
+            if d[section][key] == default:
+                del d[section][key]
+        return json.dumps(d, sort_keys=True)
 
     def hash(self) -> str:
         """sha256 of the canonical JSON text: two configs with equal hashes simulate the same thing."""
@@ -188,7 +211,9 @@ def _check_value(section: str, f: dataclasses.Field, value: Any) -> Any:
     name = f"{section}.{f.name}"
     meta = f.metadata
     typ = f.type if isinstance(f.type, type) else {"int": int, "float": float, "str": str,
-                                                    "bool": bool}[f.type]
+                                                    "bool": bool, "tuple": tuple}[f.type]
+    if typ is tuple:
+        return _check_angles(name, f, value)
     if typ is bool:
         if not isinstance(value, bool):
             raise ConfigError(f"{name}: expected true or false, got {value!r} ({type(value).__name__})")
@@ -212,6 +237,21 @@ def _check_value(section: str, f: dataclasses.Field, value: Any) -> Any:
     if bad:
         raise ConfigError(f"{name} = {value!r} is out of range: allowed {describe_range(f)}")
     return value
+
+
+def _check_angles(name: str, f: dataclasses.Field, value: Any) -> tuple:
+    """A list of finite numbers, each in the field's range, as a tuple of floats."""
+    if not isinstance(value, (list, tuple)):
+        raise ConfigError(f"{name}: expected a list of numbers, got {value!r} ({type(value).__name__})")
+    out = []
+    for i, v in enumerate(value):
+        if isinstance(v, bool) or not isinstance(v, (int, float)) or not math.isfinite(v):
+            raise ConfigError(f"{name}[{i}]: expected a finite number, got {v!r}")
+        lo, hi = f.metadata["lo"], f.metadata["hi"]
+        if not lo <= v <= hi:
+            raise ConfigError(f"{name}[{i}] = {v!r} is out of range: allowed {describe_range(f)}")
+        out.append(float(v))
+    return tuple(out)
 
 
 def describe_range(f: dataclasses.Field) -> str:
@@ -252,6 +292,10 @@ def from_dict(data: dict[str, Any], base: Config | None = None) -> Config:
 def _check_consistency(cfg: Config) -> None:
     if cfg.scene.box_length < 2 * (1 + cfg.scene.polydispersity) * cfg.scene.fill_spacing:
         raise ConfigError("scene.box_length is too short to hold a row of grains")
+    pre = cfg.protocol.pretilt_deg
+    if pre and pre[-1] != 0.0:
+        raise ConfigError(f"protocol.pretilt_deg = {list(pre)!r} must end at 0.0: the analysed ramp "
+                          "starts from 0 deg")
     h = cfg.health
     for warn, stop in (("overlap_warn", "overlap_stop"), ("energy_warn", "energy_stop"),
                        ("cap_hit_warn_fraction", "cap_hit_stop_fraction")):
