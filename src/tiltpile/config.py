@@ -23,6 +23,9 @@ import dataclasses
 import hashlib
 import json
 import math
+import operator
+import os
+import stat
 import tomllib
 from dataclasses import dataclass, field, fields
 from importlib import resources
@@ -329,12 +332,47 @@ def _merge(a: dict, b: dict) -> dict:
     return out
 
 
+MAX_CONFIG_BYTES = 1 << 20  # a configuration file is a few hundred bytes; refuse anything huge
+SEED_MAX = 2**63 - 1  # seeds are stored as HDF5 int64; the RNG takes 64 bits
+
+
+def check_seed(seed: Any) -> int:
+    """A seed as an int: a non-negative integer (not bool, not float) up to SEED_MAX."""
+    if isinstance(seed, bool):
+        raise ConfigError(f"seed must be a non-negative integer, got {seed!r}")
+    try:
+        v = operator.index(seed)
+    except TypeError:
+        raise ConfigError(f"seed must be a non-negative integer, got {seed!r}") from None
+    if not 0 <= v <= SEED_MAX:
+        raise ConfigError(f"seed {v} is out of range: seeds are integers from 0 to 2**63 - 1 = {SEED_MAX}")
+    return int(v)
+
+
 def read_toml(path: str | Path) -> dict[str, Any]:
+    """Parse a configuration file: a regular UTF-8 TOML file of at most MAX_CONFIG_BYTES (a
+    directory, a device such as /dev/zero or a binary file is refused with ConfigError, reading
+    at most MAX_CONFIG_BYTES + 1 bytes)."""
     path = Path(path)
     try:
-        return tomllib.loads(path.read_text())
+        with open(path, "rb") as fh:
+            if not stat.S_ISREG(os.fstat(fh.fileno()).st_mode):
+                raise ConfigError(f"config file {path} is not a regular file")
+            raw = fh.read(MAX_CONFIG_BYTES + 1)
     except FileNotFoundError:
         raise ConfigError(f"config file not found: {path}") from None
+    except IsADirectoryError:
+        raise ConfigError(f"config file {path} is a directory") from None
+    except OSError as e:
+        raise ConfigError(f"config file {path} cannot be read ({e.strerror or e})") from None
+    if len(raw) > MAX_CONFIG_BYTES:
+        raise ConfigError(f"config file {path} is larger than {MAX_CONFIG_BYTES} bytes: not a configuration")
+    try:
+        text = raw.decode("utf-8")
+    except UnicodeDecodeError:
+        raise ConfigError(f"{path}: not a text (UTF-8) file") from None
+    try:
+        return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{path}: not valid TOML ({e})") from None
 
