@@ -418,7 +418,7 @@ def _execute(client, config: Config, todo: list[int], out_dir: Path, man: _Manif
                     angles[s] = "running"
                     changed = True
                 elif ev["event"] == "progress" and s not in ended:
-                    angles[s] = f"{ev['theta']:.1f}°" if ev["phase"] == "tilt" else "deposit"
+                    angles[s] = f"{ev['theta']:.1f}°" if ev["phase"] == "tilt" else ev["phase"]
             finished = ac.next_batch(block=False)  # after the events: a run's start comes before its end
             ended |= {futures[f] for f in finished}
             for fut in finished:

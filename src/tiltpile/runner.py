@@ -49,6 +49,10 @@ def simulate(config, seed: int, out: str | Path, *, progress: bool | str = True,
                 writer.checkpoint(ev.state)
             elif isinstance(ev, protocol.Deposited):
                 writer.write_deposition(ev)
+            elif isinstance(ev, protocol.Prepared):
+                writer.write_preparation(ev.legs)
+            elif isinstance(ev, protocol.Ended):
+                writer.write_end(ev)
             elif isinstance(ev, protocol.Progress):
                 bar.update(ev)
                 if on_progress is not None:
@@ -94,6 +98,8 @@ class _Bar:
     def update(self, ev) -> None:
         if ev.phase == "deposit":
             self.t.set_description(f"seed {self.seed} deposit step {ev.step}", refresh=False)
+        elif ev.phase == "pretilt":
+            self.t.set_description(f"seed {self.seed} pretilt {ev.theta_deg:+.1f} deg", refresh=False)
         else:
             self.t.set_description(f"seed {self.seed} tilt", refresh=False)
             self.t.update(ev.theta_deg - self.t.n)

@@ -30,6 +30,9 @@ Layout (F frames, N grains including the fixed bottom row, C contacts over all f
     /contacts/status      (C,)      int8     0 open (touching, no force), 1 sticking,
                                              2 sliding (fully mobilized, |f_t| = mu f_n)
     /deposition           attrs: steps, time, ke_per_grain, height, max_overlap, missed
+    /preparation          attrs (only with protocol.pretilt_deg): target_deg, tilt_steps,
+                          hold_steps, ke_per_grain, one entry per leg
+    / attrs end_reason, end_theta_deg: "theta_max" or "slide" (protocol.end_ke), last frame's angle
     /health               attrs (complete runs): the health summary of ``runner.simulate`` --
                           counts of flagged frames and steps, worst values, and ``warnings``
                           (JSON list of the warning texts, empty when healthy)
@@ -154,6 +157,16 @@ class RunWriter:
         g.attrs.update(steps=int(summary.steps), time=float(summary.time),
                        ke_per_grain=float(summary.ke_per_grain), height=float(summary.height),
                        max_overlap=float(summary.max_overlap), missed=int(summary.missed))
+
+    def write_preparation(self, legs: list[dict]) -> None:
+        """The preparation history (``protocol.Prepared``): one entry per leg, as arrays."""
+        g = self.f.require_group("preparation")
+        for key in ("target_deg", "tilt_steps", "hold_steps", "ke_per_grain"):
+            g.attrs[key] = np.array([leg[key] for leg in legs])
+
+    def write_end(self, ended) -> None:
+        """How the tilt ended (``protocol.Ended``): root attrs end_reason, end_theta_deg."""
+        self.f.attrs.update(end_reason=str(ended.reason), end_theta_deg=float(ended.theta_deg))
 
     def frame_columns(self, names) -> dict:
         """Per-frame scalar columns written so far (e.g. for the health summary at the end)."""
@@ -318,6 +331,9 @@ class Run:
         self.offset = self.f["contacts/offset"][()]
         dep = self.f.get("deposition")
         self.deposition = dict(dep.attrs) if dep is not None else {}
+        prep = self.f.get("preparation")
+        self.preparation = {k: np.asarray(v) for k, v in prep.attrs.items()} if prep is not None else {}
+        self.end_reason = str(a.get("end_reason", "theta_max"))  # files before the end-of-run rule
         h = self.f.get("health")
         self.health = {k: json.loads(v) if k == "warnings" else v
                        for k, v in (h.attrs.items() if h is not None else ())}

@@ -29,7 +29,7 @@ def test_run_file_layout(smoke_run, smoke_config):
     with h5py.File(path) as f:
         for name in REQUIRED:
             assert name in f, name
-        assert json.loads(f.attrs["config"]) == smoke_config.to_dict()
+        assert config.from_json(f.attrs["config"]) == smoke_config
         assert f.attrs["seed"] == 1 and f.attrs["complete"]
         assert "checkpoint" not in f
         F = f["frames/step"].shape[0]

@@ -38,6 +38,7 @@ solve left (default preset: up to 1.3e-6 m g d per grain, against <= 1.1e-7 in e
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from typing import Iterator
 
@@ -92,6 +93,18 @@ class Frame:
 
 
 @dataclass
+class Prepared:
+    legs: list             # one dict per pretilt leg: target_deg, tilt_steps, hold_steps, ke_per_grain
+
+
+@dataclass
+class Ended:
+    reason: str            # "theta_max" (the ramp reached theta_max_deg) or "slide" (protocol.end_ke)
+    theta_deg: float       # the angle of the last frame
+    frames: int            # frames the run holds
+
+
+@dataclass
 class Checkpoint:
     state: dict            # System.state(): arrays and scalars
 
@@ -109,7 +122,8 @@ def tilt_steps_total(protocol) -> int:
 
 
 def n_frames(protocol) -> int:
-    """Frames a complete run holds: theta = 0 and one every ``frame_every`` tilt steps."""
+    """Frames a run tilted to ``theta_max_deg`` holds: theta = 0 and one every ``frame_every``
+    tilt steps (fewer when the end-of-run rule, ``protocol.end_ke``, ends it in a slide)."""
     return tilt_steps_total(protocol) // protocol.frame_every + 1
 
 
@@ -123,7 +137,7 @@ def make_system(config, seed: int) -> System:
                   tol=v.tol, max_iter=v.max_iter, mode=SWEEPS[v.sweep], relax=v.relax,
                   slop=v.overlap_slop, prune=v.prune)
     sysm.scalars.update(phase="deposit", step=0, rest_count=0, tilt_step=0, frame=0,
-                        deposition_steps=0, rebuilds=0)
+                        deposition_steps=0, rebuilds=0, end_above=0, end_reason="theta_max")
     return sysm
 
 
@@ -183,7 +197,7 @@ def _check_health(sysm: System, rec, health, n_mobile: int, phase: str, theta0_d
         return
     gain = rec.energy_gain / n_mobile
     i = int(np.argmax(gain))
-    if phase == "tilt" and gain[i] > health.energy_stop:
+    if phase in ("tilt", "pretilt") and gain[i] > health.energy_stop:
         raise SimulationError(
             f"health.energy_stop exceeded: the kinetic energy grew by {gain[i]:.3g} m g d per grain "
             f"more than gravity did work {where(i)}, limit {health.energy_stop:g}. Contacts "
@@ -203,12 +217,14 @@ def _check_health(sysm: System, rec, health, n_mobile: int, phase: str, theta0_d
             "loosen solver.tol).")
 
 
-def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Frame | Checkpoint | Progress]:
+def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Prepared | Frame | Checkpoint | Progress | Ended]:
     """Deposit and tilt one pile; resume from ``state`` (a ``Checkpoint.state``) if given."""
     sysm = make_system(config, seed)
     if state is not None:
         sysm.restore(state)
     sc = sysm.scalars
+    sc.setdefault("end_above", 0)  # checkpoints written before the end-of-run rule
+    sc.setdefault("end_reason", "theta_max")
     proto, dt, health = config.protocol, config.solver.dt, config.health
     n_mobile = int((~sysm.fixed).sum())
     last_caps = None
@@ -220,7 +236,7 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Fr
                 f"; {last_caps:.0%} of the last {DEPOSITION_CHUNK} steps hit solver.max_iter = "
                 f"{config.solver.max_iter} (if many, raise it or loosen solver.deposition_tol)")
             raise SimulationError(
-                f"deposition not at rest after {sc['deposition_steps']} steps "
+                f"deposition not at rest after {sc['deposition_steps']} steps (limit protocol.max_deposition_steps = {proto.max_deposition_steps}, checked every {DEPOSITION_CHUNK} steps) "
                 f"(kinetic energy per grain {_ke(sysm) / n_mobile:.3g} > rest_ke {proto.rest_ke:g}"
                 f"{caps}); raise protocol.max_deposition_steps or rest_ke")
         rec = sysm.advance(DEPOSITION_CHUNK, 0.0, 0.0)
@@ -237,25 +253,33 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Fr
             sc["rest_count"] = sc["rest_count"] + 1 if quiet else 0
         yield Progress("deposit", sc["step"], 0.0, float(rec.iterations.mean()))
         if sc["rest_count"] >= proto.rest_steps:
-            sc["phase"] = "tilt"
+            sc["phase"] = "pretilt" if proto.pretilt_deg else "settle"
+            sc.update(leg=0, leg_step=0, leg_start=0.0, hold_steps=0, rest_count=0, preparation=[])
             top = float(np.max(sysm.pos[:, 1] + sysm.radius))
             sc["deposition_height"] = top
             yield Deposited(sc["deposition_steps"], sc["step"] * dt, _ke(sysm) / n_mobile, top,
                             sc["deposition_max_overlap"], sc["deposition_missed"])
-            # frame 0: the deposited pile brought to the tilt tolerance, rest_steps steps at theta = 0
-            sysm.params["tol"] = config.solver.tol
-            rec = sysm.advance(proto.rest_steps, 0.0, 0.0)
-            sc["step"] += proto.rest_steps
-            _check_health(sysm, rec, health, n_mobile, "settle")
-            _check_sane(sysm, config.scene.box_length)
-            yield _frame(sysm, proto, dt, rec)
-            sc["frame"] = 1
-            yield Checkpoint(sysm.state())
         elif (sc["deposition_steps"] // DEPOSITION_CHUNK) % 10 == 0:
             yield Checkpoint(sysm.state())
 
     sysm.params["tol"] = config.solver.tol
+    while sc["phase"] == "pretilt":
+        yield from _pretilt_chunk(sysm, config, n_mobile)
+
+    if sc["phase"] == "settle":
+        # frame 0: the deposited (or prepared) pile brought to the tilt tolerance, rest_steps steps
+        # at theta = 0
+        rec = sysm.advance(proto.rest_steps, 0.0, 0.0)
+        sc["step"] += proto.rest_steps
+        _check_health(sysm, rec, health, n_mobile, "settle")
+        _check_sane(sysm, config.scene.box_length)
+        sc["phase"] = "tilt"
+        yield _frame(sysm, proto, dt, rec)
+        sc["frame"] = 1
+        yield Checkpoint(sysm.state())
+
     total = tilt_steps_total(proto)
+    span_frames = math.ceil(proto.end_span_deg / (proto.frame_every * proto.tilt_per_step_deg) - 1e-9)
     while sc["phase"] == "tilt" and sc["tilt_step"] < total:
         k = min(proto.frame_every, total - sc["tilt_step"])
         theta0 = sc["tilt_step"] * proto.tilt_per_step_deg
@@ -266,14 +290,68 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Fr
         _check_health(sysm, rec, health, n_mobile, "tilt", theta0, proto.tilt_per_step_deg)
         _check_sane(sysm, config.scene.box_length)
         if k == proto.frame_every:
-            yield _frame(sysm, proto, dt, rec)
+            frame = _frame(sysm, proto, dt, rec)
+            yield frame
             sc["frame"] += 1
+            if proto.end_ke > 0:
+                sc["end_above"] = sc["end_above"] + 1 if frame.ke / n_mobile > proto.end_ke else 0
+                if sc["end_above"] >= span_frames:
+                    sc["phase"], sc["end_reason"] = "done", "slide"
         yield Progress("tilt", sc["step"], sc["tilt_step"] * proto.tilt_per_step_deg,
                        float(rec.iterations.mean()))
         if sc["tilt_step"] >= total:
             sc["phase"] = "done"
         if sc["phase"] == "done" or (sc["frame"] - 1) % proto.checkpoint_every == 0:
             yield Checkpoint(sysm.state())
+    yield Ended(sc["end_reason"], sc["tilt_step"] // proto.frame_every * proto.frame_every
+                * proto.tilt_per_step_deg, sc["frame"])
+
+
+def _pretilt_chunk(sysm: System, config, n_mobile: int):
+    """One chunk of the preparation history (``protocol.pretilt_deg``): tilt towards the current
+    leg's angle at the ramp's rate, then hold there until at rest; events as ``run``'s."""
+    sc, proto = sysm.scalars, config.protocol
+    legs = proto.pretilt_deg
+    target, start = legs[sc["leg"]], sc["leg_start"]
+    n_leg = int(round(abs(target - start) / proto.tilt_per_step_deg))
+    if sc["leg_step"] < n_leg:
+        d = (target - start) / n_leg  # the last step lands on the target
+        k = min(DEPOSITION_CHUNK, n_leg - sc["leg_step"])
+        theta0 = start + sc["leg_step"] * d
+        rec = sysm.advance(k, theta0, d)
+        sc["leg_step"] += k
+        where = (theta0, d)
+    else:
+        k = DEPOSITION_CHUNK
+        if sc["hold_steps"] >= proto.max_deposition_steps:
+            raise SimulationError(
+                f"pretilt leg {sc['leg']} (to {target:g} deg) not at rest after holding "
+                f"{sc['hold_steps']} steps (kinetic energy per grain {_ke(sysm) / n_mobile:.3g} > "
+                f"rest_ke {proto.rest_ke:g}); raise protocol.max_deposition_steps or rest_ke")
+        rec = sysm.advance(k, target, 0.0)
+        sc["hold_steps"] += k
+        for quiet in rec.ke / n_mobile < proto.rest_ke:
+            sc["rest_count"] = sc["rest_count"] + 1 if quiet else 0
+        where = (target, 0.0)
+    sc["step"] += k
+    sc["rebuilds"] += rec.rebuilds
+    _check_health(sysm, rec, config.health, n_mobile, "pretilt", *where)
+    _check_sane(sysm, config.scene.box_length)
+    yield Progress("pretilt", sc["step"], where[0] + k * where[1], float(rec.iterations.mean()))
+    if sc["leg_step"] >= n_leg and sc["rest_count"] >= proto.rest_steps:
+        sc["preparation"] = sc["preparation"] + [dict(
+            target_deg=float(target), tilt_steps=n_leg, hold_steps=int(sc["hold_steps"]),
+            ke_per_grain=_ke(sysm) / n_mobile)]
+        sc.update(leg=sc["leg"] + 1, leg_start=float(target), leg_step=0, hold_steps=0, rest_count=0)
+        if sc["leg"] == len(legs):
+            sc["phase"] = "settle"
+            yield Prepared(list(sc["preparation"]))
+            return
+        yield Checkpoint(sysm.state())  # at the end of every leg but the last
+        return
+    sc["pretilt_chunks"] = sc.get("pretilt_chunks", 0) + 1
+    if sc["pretilt_chunks"] % 10 == 0:
+        yield Checkpoint(sysm.state())
 
 
 def deposited(config, seed: int, on_progress=None) -> System:
