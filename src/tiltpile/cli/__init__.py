@@ -14,7 +14,7 @@ import sys
 
 from tiltpile import config as cfgmod
 
-COMMANDS = ("simulate", "ensemble", "observables", "report", "bench")
+COMMANDS = ("simulate", "ensemble", "observables", "report", "bench", "info", "export", "movie")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -1,0 +1,11 @@
+"""Looking at runs: viewer export, movies and one-screen summaries of run files.
+
+Modules (they read run files only through :mod:`tiltpile.store` and take every derived quantity
+from :mod:`tiltpile.analysis`; nothing below ``view`` imports it):
+
+``fields``   the per-grain and per-contact fields of each frame (active and mobilized contact
+             numbers, critical-cluster id, failing grains) from the analysis library
+``export``   extended XYZ (OVITO, ASE) and VTK XML (ParaView) writers
+``movie``    the pile drawn as in the paper's Fig. 3, frame after frame, to mp4 or GIF
+``info``     a one-screen summary of a run file or an ensemble directory
+"""

@@ -1,0 +1,322 @@
+"""One-screen summaries of a run file (:func:`run_info`) and of an ensemble directory
+(:func:`dir_info`), as text.
+
+A run: the configuration as TOML (complete: ``tiltpile simulate --config FILE`` with it reproduces
+the run's configuration hash), seed, version, grains, frames, theta range, the deposition and
+health summaries stored in the file, the first onsets by the lost-contact criterion (the paper's:
+a frame losing more than ``cutoff`` of its active contacts before the next one, computed with
+:mod:`tiltpile.analysis`), whether the run is complete, and its size on disk.
+
+A directory: one line per run file (``run_*.h5``, and any ``.part`` still being written or
+interrupted), then the manifest ``ensemble.json`` (configuration hash, versions, run statuses).
+The onsets of a directory come from its observables cache (``tiltpile observables DIR``); they
+are not computed here.
+
+A file that is missing, truncated or not a tiltpile run raises :class:`InfoError` naming the
+file and what is wrong.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+import warnings
+from pathlib import Path
+
+import numpy as np
+
+from tiltpile.analysis import DEFAULT_PARAMS
+from tiltpile.analysis import avalanche as _av
+from tiltpile.analysis import observables as _ob
+from tiltpile.store import RunFileError, open_run, part_path
+
+from .fields import FrameFields
+
+
+class InfoError(ValueError):
+    """A path that is not a readable run file or ensemble directory (the message names it)."""
+
+
+# ----------------------------------------------------------------------------------------------
+# formatting helpers
+
+
+def _toml_value(v) -> str:
+    if isinstance(v, (bool, np.bool_)):
+        return "true" if v else "false"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    if isinstance(v, (float, np.floating)):
+        v = float(v)
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"no TOML form for {type(v).__name__} {v!r}")
+
+
+def config_toml(config: dict) -> str:
+    """A configuration dict (sections of scalar values) as TOML text; ``None`` values are left
+    out (TOML has no null: the preset's default applies)."""
+    lines = []
+    for section in sorted(config):
+        lines.append(f"[{section}]")
+        for key, value in sorted(config[section].items()):
+            if value is None:
+                lines.append(f"# {key}: unset")
+            else:
+                lines.append(f"{key} = {_toml_value(value)}")
+        lines.append("")
+    return "\n".join(lines)
+
+
+def human_size(n: int) -> str:
+    for unit in ("B", "kB", "MB", "GB"):
+        if n < 1000 or unit == "GB":
+            return f"{n:.0f} {unit}" if unit == "B" else f"{n:.1f} {unit}"
+        n /= 1000.0
+    return f"{n:.1f} GB"
+
+
+def _g(v) -> str:
+    if isinstance(v, (bool, np.bool_)):
+        return "yes" if v else "no"
+    if isinstance(v, (float, np.floating)):
+        return f"{float(v):.4g}"
+    if isinstance(v, (int, np.integer)):
+        return str(int(v))
+    return str(v)
+
+
+# ----------------------------------------------------------------------------------------------
+# onsets
+
+
+def lost_fraction(run, progress: bool = False) -> np.ndarray:
+    """Per frame k, the fraction of its active contacts lost by frame k + 1 (NaN at the last
+    frame), with the analysis' definitions (:func:`tiltpile.analysis.observables.failure_between`)."""
+    ff = FrameFields(run, keep=2)
+    nf = int(run.n_frames)
+    out = np.full(nf, np.nan)
+    bar = None
+    if progress and nf > 1:
+        from tqdm.auto import tqdm
+        bar = tqdm(total=nf - 1, desc="onsets", unit="frame", leave=False)
+    for k in range(nf - 1):
+        fb = _ob.failure_between(ff.contacts(k), ff.contacts(k + 1), ff.fixed, ff.radius,
+                                 ff.box_length, ff.settings["lost_gap"])
+        out[k] = fb["lost_fraction"]
+        if bar is not None:
+            bar.update(1)
+    if bar is not None:
+        bar.close()
+    return out
+
+
+def onsets(run, cutoff: float | None = None, progress: bool = False) -> dict:
+    """Avalanche onsets of a run by the lost-contact criterion (default cutoff: the analysis
+    default, 2%). Returns dict cutoff, frames (onset frame indices), theta_deg (their tilt),
+    max_lost_fraction, notes (resolution warnings of :func:`segment_avalanches`)."""
+    cutoff = DEFAULT_PARAMS["cutoff"] if cutoff is None else cutoff
+    lf = lost_fraction(run, progress)
+    with warnings.catch_warnings(record=True) as caught:
+        warnings.simplefilter("always")
+        seg = _av.segment_avalanches(lf, cutoff)
+    theta = np.asarray(run.theta_deg, dtype=float)
+    fin = lf[np.isfinite(lf)]
+    return {"cutoff": cutoff, "frames": seg["onsets"], "theta_deg": theta[seg["onsets"]],
+            "max_lost_fraction": float(fin.max()) if fin.size else float("nan"),
+            "notes": [str(w.message) for w in caught]}
+
+
+# ----------------------------------------------------------------------------------------------
+# one run
+
+
+def _open(path: Path):
+    try:
+        return open_run(path)
+    except RunFileError as e:
+        raise InfoError(str(e)) from None
+    except (OSError, KeyError, ValueError) as e:
+        raise InfoError(f"{path}: not a readable tiltpile run file ({type(e).__name__}: {e})") from None
+
+
+def _part_line(path: Path) -> str:
+    return (f"{path}: an incomplete run ({human_size(path.stat().st_size)}), being written or "
+            "interrupted; `tiltpile simulate` with the same configuration and seed resumes it")
+
+
+def run_summary(path, with_onsets: bool = True, progress: bool = False) -> dict:
+    """The facts :func:`run_info` prints, as a dict (also one line of :func:`dir_info`)."""
+    path = Path(path)
+    if path.name.endswith(".part"):
+        raise InfoError(_part_line(path))
+    run = _open(path)
+    try:
+        try:
+            theta = np.asarray(run.theta_deg, dtype=float)
+            s = {
+                "path": str(path), "size": path.stat().st_size, "seed": run.seed,
+                "version": run.tiltpile_version, "config": run.config,
+                "config_hash": run.config_hash, "complete": bool(run.f.attrs.get("complete", False)),
+                "n_grains": int(run.radius.size), "n_fixed": int(np.sum(run.fixed)),
+                "n_frames": run.n_frames,
+                "theta_min": float(theta.min()) if theta.size else float("nan"),
+                "theta_max": float(theta.max()) if theta.size else float("nan"),
+                "dtheta": float(np.median(np.diff(theta))) if theta.size > 1 else float("nan"),
+                "steps": int(run.step[-1]) if theta.size else 0,
+                "time": float(run.time[-1]) if theta.size else float("nan"),
+                "deposition": dict(run.deposition), "health": dict(run.health),
+                "jit": run.f.attrs.get("jit", ""),
+            }
+            if with_onsets and run.n_frames > 1:
+                s["onsets"] = onsets(run, progress=progress)
+        except (OSError, KeyError, ValueError, IndexError) as e:
+            raise InfoError(f"{path}: damaged tiltpile run file ({type(e).__name__}: {e})") from None
+    finally:
+        run.close()
+    return s
+
+
+def run_info(path, progress: bool = False) -> str:
+    """The one-screen text summary of a run file (module docstring)."""
+    s = run_summary(path, progress=progress)
+    cfg = s["config"]
+    out = [f"run file   {s['path']}  ({human_size(s['size'])}, "
+           f"{'complete' if s['complete'] else 'NOT complete'})",
+           f"seed       {s['seed']}    tiltpile {s['version']}    config hash {s['config_hash'][:12]}",
+           f"grains     {s['n_grains']} ({s['n_grains'] - s['n_fixed']} mobile, {s['n_fixed']} fixed "
+           f"bottom), box length {cfg.get('scene', {}).get('box_length', '?')} d",
+           f"frames     {s['n_frames']}, theta {s['theta_min']:.3f} .. {s['theta_max']:.3f} deg "
+           f"(every {s['dtheta']:.3g} deg), {s['steps']} steps, t = {s['time']:.4g} sqrt(d/g)"]
+    dep = s["deposition"]
+    if dep:
+        out.append("deposition " + ", ".join(
+            f"{k} {_g(dep[k])}" for k in ("steps", "time", "height", "ke_per_grain", "max_overlap",
+                                         "missed") if k in dep))
+    h = s["health"]
+    if h:
+        warn = h.get("warnings") or []
+        keys = ("cap_hit_fraction", "max_overlap", "max_energy_gain", "missed_steps")
+        out.append("health     " + ", ".join(f"{k} {_g(h[k])}" for k in keys if k in h)
+                   + f"; {len(warn)} warning(s)")
+        out += [f"  ! {w}" for w in warn]
+    else:
+        out.append("health     no summary stored (written before health checks, or not complete)")
+    on = s.get("onsets")
+    if on is not None:
+        th = on["theta_deg"]
+        first = ", ".join(f"{t:.2f}" for t in th[:6]) + (" ..." if th.size > 6 else "")
+        out.append(f"onsets     {th.size} by the {on['cutoff']:.0%} lost-contact criterion"
+                   + (f", first at theta = {first} deg" if th.size else
+                      f" (largest lost fraction {on['max_lost_fraction']:.2%})"))
+        out += [f"  note: {n}" for n in on["notes"]]
+    out.append("")
+    out.append("# configuration (reuse: tiltpile simulate --config FILE.toml --seed "
+               f"{s['seed']} --out RUN.h5)")
+    out.append(config_toml(cfg).rstrip())
+    return "\n".join(out)
+
+
+# ----------------------------------------------------------------------------------------------
+# a directory
+
+
+def _dir_onsets(d: Path) -> dict:
+    """{seed: (n_onsets, first onset theta)} from the ensemble's fresh observables cache; {} if
+    the cache is missing or stale for any run."""
+    try:
+        frames, _ = _ob.load_observables(d, compute_missing=False)
+    except (FileNotFoundError, OSError, KeyError, ValueError):
+        return {}
+    out = {}
+    for seed, g in frames.groupby("run"):
+        on = g["onset"].to_numpy(bool)
+        th = g["theta_deg"].to_numpy(float)
+        out[int(seed)] = (int(on.sum()), float(th[on][0]) if on.any() else float("nan"))
+    return out
+
+
+def dir_info(d) -> str:
+    """One line per run of an ensemble directory, then its manifest (module docstring)."""
+    from tiltpile.config import ConfigError
+    from tiltpile.ensemble import read_manifest
+
+    d = Path(d)
+    files = sorted(d.glob("run_*.h5"))
+    parts = sorted(p for p in d.glob("run_*.h5.part") if not p.with_suffix("").exists())
+    try:
+        man = read_manifest(d)
+    except ConfigError as e:
+        man, man_error = None, str(e)
+    else:
+        man_error = None
+    if not files and not parts and man is None:
+        raise InfoError(f"{d}: no run files (run_*.h5) and no ensemble manifest here")
+    ons = _dir_onsets(d) if files else {}
+    out = [f"ensemble   {d}  ({len(files)} run file(s), {len(parts)} incomplete)"]
+    head = f"{'file':<18} {'seed':>5} {'grains':>6} {'frames':>6} {'theta max':>9} {'onsets':>6} " \
+           f"{'first':>6} {'warn':>4} {'size':>9}  state"
+    out.append(head)
+    total = 0
+    for p in files:
+        size = p.stat().st_size
+        total += size
+        try:
+            s = run_summary(p, with_onsets=False)
+        except InfoError as e:
+            out.append(f"{p.name:<18} {'':>5} unreadable: {str(e).removeprefix(str(p) + ': ')}")
+            continue
+        n_on, first = ons.get(s["seed"], (None, float("nan")))
+        warn = len(s["health"].get("warnings") or []) if s["health"] else "-"
+        out.append(f"{p.name:<18} {s['seed']:>5} {s['n_grains']:>6} {s['n_frames']:>6} "
+                   f"{s['theta_max']:>9.2f} {('-' if n_on is None else n_on):>6} "
+                   f"{('-' if math.isnan(first) else f'{first:.2f}'):>6} {warn:>4} "
+                   f"{human_size(size):>9}  {'complete' if s['complete'] else 'NOT complete'}")
+    for p in parts:
+        size = p.stat().st_size
+        total += size
+        out.append(f"{p.name:<18} {'':>5} {'':>6} {'':>6} {'':>9} {'':>6} {'':>6} {'':>4} "
+                   f"{human_size(size):>9}  incomplete (running or interrupted)")
+    out.append(f"total size {human_size(total)}")
+    if files and not ons:
+        out.append(f"onsets: no fresh observables cache; run `tiltpile observables {d}`")
+    out.append("")
+    if man_error:
+        out.append(f"manifest   {man_error}")
+    elif man is None:
+        out.append("manifest   none (not made by `tiltpile ensemble`)")
+    else:
+        runs = man.get("runs", {})
+        counts = {}
+        for r in runs.values():
+            counts[r.get("status", "?")] = counts.get(r.get("status", "?"), 0) + 1
+        out.append(f"manifest   {d / 'ensemble.json'}: {len(man.get('seeds', []))} seed(s), "
+                   + ", ".join(f"{v} {k}" for k, v in sorted(counts.items())))
+        out.append(f"  config hash {str(man.get('config_hash', ''))[:12]}, tiltpile "
+                   f"{man.get('tiltpile_version', '?')}, versions "
+                   + ", ".join(f"{k} {v}" for k, v in (man.get("versions") or {}).items()))
+        failed = [r for r in runs.values() if r.get("status") == "failed"]
+        for r in failed:
+            out.append(f"  failed: seed {r.get('seed')}: {r.get('error')}")
+        inv = man.get("invocations") or []
+        if inv:
+            out.append(f"  {len(inv)} invocation(s), last {inv[-1].get('started', '?')}")
+    return "\n".join(out)
+
+
+def info(path, progress: bool = False) -> str:
+    """:func:`run_info` of a file, :func:`dir_info` of a directory."""
+    p = Path(path)
+    if p.is_dir():
+        return dir_info(p)
+    if not p.exists():
+        hint = " (an incomplete .part file exists)" if part_path(p).exists() else ""
+        raise InfoError(f"{p}: no such run file or directory{hint}")
+    return run_info(p, progress=progress)
