@@ -12,9 +12,9 @@ import pandas as pd
 import pytest
 
 from tiltpile import cli
-from tiltpile.perfchart import (ACCURACY_COLUMNS, DEFAULT_DT, DEFAULT_SLOP, DEFAULT_TOL,
-                                SCALING_COLUMNS, ChartSpec, grid_points, pareto_front, run_chart,
-                                tile)
+from tiltpile.bench.chart import (ACCURACY_COLUMNS, DEFAULT_DT, DEFAULT_SLOP, DEFAULT_TOL,
+                                  SCALING_COLUMNS, ChartSpec, grid_points, pareto_front, run_chart,
+                                  tile)
 
 
 @pytest.fixture(scope="module")
@@ -140,12 +140,13 @@ def test_scaling_part_with_an_old_accuracy_table(tmp_path, monkeypatch):
     """--parts scaling summarises an accuracy.csv already in the directory; one written before a
     column existed is not summarised (a warning names the missing column) and the scaling part
     still runs."""
-    import tiltpile.perfchart as pc
+    import tiltpile.bench.chart as chart
+    from tiltpile.bench.chart import plots, scaling
 
-    monkeypatch.setattr(pc, "scaling_sweep", lambda spec, progress: pd.DataFrame())
-    monkeypatch.setattr(pc, "scaling_fit", lambda sc: {})
-    monkeypatch.setattr(pc, "plot_scaling", lambda *a, **k: None)
-    monkeypatch.setattr(pc, "_atomic_csv", lambda df, path: None)
+    monkeypatch.setattr(scaling, "scaling_sweep", lambda spec, progress: pd.DataFrame())
+    monkeypatch.setattr(scaling, "scaling_fit", lambda sc: {})
+    monkeypatch.setattr(plots, "plot_scaling", lambda *a, **k: None)
+    monkeypatch.setattr(chart, "atomic_csv", lambda df, path: None)
     old = pd.DataFrame({c: [1.0] for c in ACCURACY_COLUMNS if c not in ("slop", "drift_per_deg")})
     old.to_csv(tmp_path / "accuracy.csv", index=False)
     with pytest.warns(UserWarning, match="lacks the column.s. slop, drift_per_deg"):
@@ -158,7 +159,7 @@ def test_the_committed_accuracy_table_is_read_back():
     """figures/performance/accuracy.csv (make bench) has every column the plots read."""
     from pathlib import Path
 
-    from tiltpile.perfchart import read_accuracy
+    from tiltpile.bench.chart import read_accuracy
 
     path = Path(__file__).resolve().parents[2] / "figures" / "performance" / "accuracy.csv"
     acc = read_accuracy(path)

@@ -7,7 +7,7 @@ import shutil
 import numpy as np
 import pytest
 
-from tiltpile.perf import compare_ensembles as ce
+from tiltpile.bench import compare_ensembles as ce
 
 
 def test_config_diff_names_nested_keys():
@@ -31,9 +31,8 @@ def test_welch_shift_and_p():
 
 def test_compare_two_copies_of_the_smoke_run(smoke_run, tmp_path, capsys):
     """Two directories holding the same run: the same numbers, no configuration difference, no
-    shift; the onset is the one the figure code finds (``fig2.first_onsets``)."""
-    from tiltpile.figures.data import load_ensemble
-    from tiltpile.figures.fig2 import first_onsets
+    shift; the onset is the one the figure code finds (``ensemble_data.first_onsets``)."""
+    from tiltpile.analysis.ensemble_data import first_onsets, load_ensemble
 
     path, _ = smoke_run
     dirs = []

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from tiltpile.perf import flow_caps
+from tiltpile.bench import flow_caps
 from tiltpile.store import open_run
 
 

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 
 from simhelpers import copy_system
-from tiltpile.perf import flow_caps
+from tiltpile.bench import flow_caps
 from tiltpile.sim import protocol, solver
 from tiltpile.sim.rng import make_state
 

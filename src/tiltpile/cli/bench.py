@@ -28,28 +28,24 @@ def run(args) -> int:
         return _chart(args)
     if args.quick or args.parts:
         raise ConfigError("--quick and --parts only apply to --chart DIR")
-    from tiltpile.bench import bench
+    from tiltpile.bench.timing import print_result, time_pile
 
-    result = bench(n=args.n, steps=args.steps, preset=args.preset, config_file=args.config,
-                   overrides=args.overrides, seed=args.seed, progress=not args.json)
-    if args.json:
-        print(json.dumps(result))
-    else:
-        for k, v in result.items():
-            print(f"{k:>24}: {v}")
+    result = time_pile(n=args.n, steps=args.steps, preset=args.preset, config_file=args.config,
+                       overrides=args.overrides, seed=args.seed, progress=not args.json)
+    print_result(result, args.json)
     return 0
 
 
 def _chart(args) -> int:
-    """``bench --chart DIR``: the speed x accuracy chart (tiltpile.perfchart)."""
+    """``bench --chart DIR``: the speed x accuracy chart (tiltpile.bench.chart)."""
     given = [name for name, value, default in (
         ("--n", args.n, 4000), ("--steps", args.steps, 200), ("--seed", args.seed, 0),
         ("--set", args.overrides, []), ("--config", args.config, None), ("--preset", args.preset, "paper"))
         if value != default]
     if given:
         raise ConfigError(f"{', '.join(given)} do not apply to --chart (its scenes are fixed: "
-                          "tiltpile.perfchart.ChartSpec)")
-    from tiltpile.perfchart import ChartSpec, run_chart
+                          "tiltpile.bench.chart.ChartSpec)")
+    from tiltpile.bench.chart import ChartSpec, run_chart
 
     spec = ChartSpec.quick_spec() if args.quick else ChartSpec.full()
     parts = tuple(args.parts.split(",")) if args.parts else ("accuracy", "scaling")

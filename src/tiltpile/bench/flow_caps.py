@@ -1,7 +1,7 @@
 """The iteration cap in a flowing pile: cost and error of NLGS settings from one frame of a run.
 
-Usage: python -m tiltpile.perf.flow_caps RUN FRAME STEPS [--warm W] [variant ...]
-       python -m tiltpile.perf.flow_caps RUN FRAME --one-step [--warm W] [max_iter ...]
+Usage: python -m tiltpile.bench.flow_caps RUN FRAME STEPS [--warm W] [variant ...]
+       python -m tiltpile.bench.flow_caps RUN FRAME --one-step [--warm W] [max_iter ...]
   RUN    a run file (``tiltpile simulate``); FRAME its frame index, e.g. 340 = 17 deg in the
          paper preset (a frame every 0.05 deg)
   STEPS  steps per variant
@@ -27,7 +27,7 @@ component times dt (the position error the step leaves) and the contacts whose s
 sticking, sliding) differs. The contact list is the same for every cap: a rebuild is decided
 before the solve (checked).
 
-README "Speed and accuracy" lists what it measured on the paper run.
+docs/performance.md ("Speed and accuracy") records what it measured on the paper run.
 """
 from __future__ import annotations
 
@@ -125,7 +125,7 @@ def one_step(cfg, seed: int, theta, state, caps) -> list[dict]:
 
 
 def main(argv=None) -> list[dict]:
-    ap = argparse.ArgumentParser(prog="python -m tiltpile.perf.flow_caps",
+    ap = argparse.ArgumentParser(prog="python -m tiltpile.bench.flow_caps",
                                  description=__doc__.splitlines()[0])
     ap.add_argument("run")
     ap.add_argument("frame", type=int)

@@ -1,18 +1,18 @@
 """Does a setting change the physics? The onset angle and the quiet contact network of ensembles
 that differ in one setting, against the first.
 
-Usage: python -m tiltpile.perf.compare_ensembles DIR [DIR ...]
+Usage: python -m tiltpile.bench.compare_ensembles DIR [DIR ...]
   DIR  an ensemble directory (``tiltpile ensemble ... --out DIR``); its observables are computed
        if missing (``tiltpile observables``). The first DIR is the reference.
 
 Per ensemble: the configuration keys that differ from the reference's; the runs; three numbers
-per run: the first onset theta_m (Fig. 2's definition, :func:`tiltpile.figures.fig2.first_onsets`)
+per run: the first onset theta_m (Fig. 2's definition, :func:`tiltpile.analysis.ensemble_data.first_onsets`)
 and the mean coordination z and mobilized fraction n_m over the run's quiet frames; their mean
 over the runs with its standard error, and the difference from the reference's with Welch's
 t-test (two-sided p); and the fraction of avalanching frames. Different
 settings usually deposit different piles, so the comparison is between ensembles, not run by
 run: with ~6 runs and a seed-to-seed spread of ~2 deg only shifts of 2-3 deg stand out.
-README "Speed and accuracy" lists what it measured (time step and tolerance at the default scale).
+docs/performance.md ("Speed and accuracy") records what it measured (time step and tolerance at the default scale).
 """
 from __future__ import annotations
 
@@ -41,7 +41,7 @@ METRICS = ("theta_m", "z_quiet", "n_m_quiet")
 def summarize(ens) -> dict:
     """The numbers of one ensemble (module docstring): per metric the per-run values (seeds in
     ``ens.seeds`` order, NaN where a run has none), ``<metric>_mean`` and ``<metric>_sem``."""
-    from tiltpile.figures.fig2 import first_onsets
+    from tiltpile.analysis.ensemble_data import first_onsets
 
     f = ens.frames
     av = f["avalanching"].to_numpy(bool)
@@ -77,7 +77,7 @@ def welch(a, b) -> tuple[float, float]:
 def compare(dirs) -> list[dict]:
     """One row per directory: ``summarize`` plus ``diff`` (config keys) and, per metric of
     ``METRICS``, ``<metric>_shift`` and ``<metric>_p`` against the first (``welch``)."""
-    from tiltpile.figures.data import load_ensemble
+    from tiltpile.analysis.ensemble_data import load_ensemble
 
     rows = []
     for d in dirs:
@@ -92,7 +92,7 @@ def compare(dirs) -> list[dict]:
 
 
 def main(argv=None) -> list[dict]:
-    ap = argparse.ArgumentParser(prog="python -m tiltpile.perf.compare_ensembles",
+    ap = argparse.ArgumentParser(prog="python -m tiltpile.bench.compare_ensembles",
                                  description=__doc__.splitlines()[0])
     ap.add_argument("dirs", nargs="+", help="ensemble directories; the first is the reference")
     a = ap.parse_args(argv)

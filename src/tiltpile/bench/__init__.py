@@ -1,0 +1,22 @@
+"""Measurements: what the simulator costs and how accurate it is. The results, dated, are in
+``docs/performance.md``; ``make bench`` regenerates ``figures/performance/``.
+
+Every module runs as ``python -m tiltpile.bench.<name>`` through ``main(argv)`` and measures
+nothing when imported (``python -m tiltpile.bench`` lists them):
+
+``pile``               the settled piles every measurement starts from, cached in data/bench
+``timing``             ``tiltpile bench``: the cost of a step on a settled pile of n grains
+``chart``              ``make bench``: the speed x accuracy chart (``spec``, ``accuracy``,
+                       ``scaling``, ``plots``), written to figures/performance/
+``solver_micro``       ns per contact update of each sweep order, one process
+``solver_variants``    sweeps, cost and true error of NLGS variants while tilting
+``flow_caps``          the iteration cap in a flowing pile, from a frame of a run
+``precursor_caps``     the iteration cap between precursor events, from frames of a run
+``compare_ensembles``  onset, z and n_m of ensembles that differ in one setting
+
+Measurement code sits beside the command line: it imports ``config``, ``sim``, ``store`` and
+``analysis``, never ``figures`` or ``cli`` (``tests/test_layers.py``).
+"""
+
+STUDIES = ("pile", "timing", "chart", "solver_micro", "solver_variants", "flow_caps",
+           "precursor_caps", "compare_ensembles")

@@ -1,0 +1,3 @@
+from tiltpile.bench.chart import main
+
+raise SystemExit(main())
