@@ -1,0 +1,99 @@
+"""``tiltpile info`` on a run, on an ensemble directory, and on files that are not whole runs."""
+
+from __future__ import annotations
+
+import tomllib
+
+import h5py
+import numpy as np
+import pytest
+
+from tiltpile import config
+from tiltpile.analysis import run_observables
+from tiltpile.cli import main
+from tiltpile.store import open_run
+
+
+def test_info_of_a_run(tiny_run, tmp_path, capsys):
+    assert main(["info", str(tiny_run), "--quiet"]) == 0
+    text = capsys.readouterr().out
+    with open_run(tiny_run) as run:
+        seed, nf, hash_ = run.seed, run.n_frames, run.config_hash
+        n, nfix = run.radius.size, int(run.fixed.sum())
+    assert f"seed       {seed}" in text and "complete" in text and "NOT complete" not in text
+    assert f"{n} ({n - nfix} mobile, {nfix} fixed bottom)" in text
+    assert f"frames     {nf}, theta 0.000 .. 20.000 deg" in text
+    assert "deposition steps" in text and "0 warning(s)" in text and "kB" in text
+    # first onsets as the observables find them
+    frames, _ = run_observables(tiny_run)
+    th = frames.loc[frames["onset"], "theta_deg"].to_numpy()
+    assert th.size > 0
+    assert f"onsets     {th.size} by the 2% lost-contact criterion, first at theta = " \
+           + ", ".join(f"{t:.2f}" for t in th[:6]) in text
+    # the TOML block reproduces the configuration exactly
+    toml = text.split("# configuration")[1].split("\n", 1)[1]
+    cfg_file = tmp_path / "again.toml"
+    cfg_file.write_text(toml)
+    assert tomllib.loads(toml)["scene"]["n"] == 60
+    assert config.load("paper", cfg_file).hash() == hash_
+
+
+def test_info_of_an_ensemble_directory(tiny_ensemble, capsys):
+    assert main(["info", str(tiny_ensemble)]) == 0
+    lines = capsys.readouterr().out.splitlines()
+    rows = {ln.split()[0]: ln for ln in lines if ln.startswith("run_")}
+    assert set(rows) == {"run_0002.h5", "run_0003.h5", "run_0004.h5.part"}
+    assert rows["run_0002.h5"].split()[1:4] == ["2", "70", "41"]
+    assert "incomplete" in rows["run_0004.h5.part"]
+    assert any(ln.startswith("manifest") and "3 seed(s), 2 done, 1 running" in ln for ln in lines)
+    assert any("tiltpile observables" in ln for ln in lines)   # no cache: says how to get onsets
+
+
+def _foreign_h5(path):
+    with h5py.File(path, "w") as f:
+        f["x"] = np.arange(3)
+
+
+def _truncated(src, path):
+    path.write_bytes(src.read_bytes()[:50_000])
+
+
+def _damaged(src, path):
+    path.write_bytes(src.read_bytes())
+    with h5py.File(path, "r+") as f:
+        del f["particles/radius"]
+
+
+@pytest.mark.parametrize("kind, message", [
+    ("truncated", "not a readable HDF5 file"), ("foreign", "not a tiltpile run file"),
+    ("text", "not a readable HDF5 file"), ("damaged", "radius"),
+    ("missing", "no such run file"),
+])
+def test_info_on_broken_files_names_them(tiny_run, tmp_path, capsys, kind, message):
+    path = tmp_path / f"{kind}.h5"
+    if kind == "truncated":
+        _truncated(tiny_run, path)
+    elif kind == "foreign":
+        _foreign_h5(path)
+    elif kind == "text":
+        path.write_text("not a run\n")
+    elif kind == "damaged":
+        _damaged(tiny_run, path)
+    assert main(["info", str(path), "--quiet"]) == 2
+    captured = capsys.readouterr()
+    assert captured.out == ""
+    err = captured.err
+    assert err.startswith(f"tiltpile info: error: {path}") and message in err
+    assert err.count("\n") == 1 and "Traceback" not in err
+
+
+def test_info_on_a_part_file_and_a_bad_run_in_a_directory(tiny_run, tmp_path, capsys):
+    part = tmp_path / "run_0001.h5.part"
+    part.write_bytes(b"x" * 10)
+    assert main(["info", str(part)]) == 2
+    assert "an incomplete run" in capsys.readouterr().err
+    _truncated(tiny_run, tmp_path / "run_0005.h5")
+    assert main(["info", str(tmp_path)]) == 0
+    out = capsys.readouterr().out
+    assert "run_0005.h5" in out and "unreadable: not a readable HDF5 file" in out
+    assert "manifest   none" in out
