@@ -4,9 +4,19 @@
 ``.part`` of the same configuration from its last checkpoint, and returns a summary dict. Both the
 ``simulate`` command and the ensemble call it.
 
+One writer. The run file's writer lock (``store.writer_lock``, ``NAME.lock``) is held from before
+anything is read or written until the end: a second process writing the same file is refused
+with ``store.RunBusyError``, having changed nothing. An existing ``out`` is replaced only when the
+new run is complete (the rename of ``out.part``); ``overwrite=False`` refuses to replace it
+(``store.RunExistsError``). A ``.part`` that cannot be resumed (another configuration, no
+checkpoint, damaged) is discarded with a ``RuntimeWarning`` saying why. A failed write (a full
+disk, ...) raises ``store.RunWriteError`` with one line; the ``.part`` and its checkpoint stay for
+the resume and no temporary file is left.
+
 Health. Past a stop limit of ``config.health`` the protocol raises ``SimulationError``; the
-``.part`` file stays (rerunning the same configuration resumes it and stops at the same place; a
-changed configuration has another hash and starts afresh). A complete run is judged against the
+``.part`` file stays if it has a checkpoint (rerunning the same configuration resumes it and
+stops at the same place; a changed configuration has another hash and starts afresh), and is
+removed if it has none (nothing to resume). A complete run is judged against the
 warn limits over all its frames (``tiltpile.health.summarize``, resumed runs included): the summary
 goes to the run file's ``/health`` attrs and to the returned dict (key ``health``; the ensemble
 manifest records it per run), and any warnings are issued as one ``RuntimeWarning``.
@@ -18,22 +28,49 @@ import time
 import warnings
 from pathlib import Path
 
-from tiltpile import health
+from tiltpile import config as cfgmod
+from tiltpile import health, store
 from tiltpile.sim import protocol
 from tiltpile.sim.jit import flags
 from tiltpile.store import RunWriter
 
 
 def simulate(config, seed: int, out: str | Path, *, progress: bool | str = True,
-             resume: bool = True, position: int = 0, on_progress=None) -> dict:
+             resume: bool = True, position: int = 0, on_progress=None,
+             overwrite: bool = True) -> dict:
     """Simulate one pile into ``out``; ``progress`` True for a terminal bar, "log" for lines;
-    ``on_progress`` (optional) is called with every ``protocol.Progress`` event."""
+    ``on_progress`` (optional) is called with every ``protocol.Progress`` event; ``overwrite``
+    False refuses an existing ``out`` (checked under the writer lock)."""
+    seed = cfgmod.check_seed(seed)
     out = Path(out)
+    try:
+        out.parent.mkdir(parents=True, exist_ok=True)
+    except OSError as e:
+        raise store.RunWriteError(f"cannot write {out}: {store._describe_os_error(e)}") from None
+    with store.writer_lock(out):
+        if out.exists() and not overwrite:
+            raise store.RunExistsError(f"{out} exists (finished by another process?); nothing was changed")
+        store.remove_stale_checkpoint(out)
+        try:
+            return _simulate(config, seed, out, progress, resume, position, on_progress)
+        except (OSError, RuntimeError) as e:
+            if isinstance(e, (store.RunFileError, protocol.SimulationError)) or not store.is_write_failure(e):
+                raise
+            raise store.write_error(e, store.part_path(out)) from None
+
+
+def _simulate(config, seed, out, progress, resume, position, on_progress) -> dict:
     t0 = time.perf_counter()
-    resumed = RunWriter.resume(out, config.hash()) if resume else None
+    why: list[str] = []
+    resumed = RunWriter.resume(out, config.hash(), why=why) if resume else None
     if resumed is not None:
         writer, state = resumed
     else:
+        part = store.part_path(out)
+        if part.exists():
+            reason = ("--no-resume (resume=False) was given" if not resume
+                      else why[0] if why else "it cannot be resumed")
+            warnings.warn(f"discarding {part}: {reason}; starting afresh", RuntimeWarning, stacklevel=3)
         sysm = protocol.make_system(config, seed)
         writer = RunWriter(out, config_json=config.to_json(), config_hash=config.hash(), seed=seed,
                            radius=sysm.radius, fixed=sysm.fixed, box_length=config.scene.box_length,
@@ -63,10 +100,14 @@ def simulate(config, seed: int, out: str | Path, *, progress: bool | str = True,
         path = writer.finish()
     except protocol.SimulationError as e:
         writer.close()
-        raise protocol.SimulationError(
-            f"{e} The partial file {writer.part} is kept: rerunning the same configuration "
-            "resumes it from its last checkpoint (and stops here again); a changed configuration "
-            "has a new hash and starts afresh.") from e
+        if writer.ckpt.exists():
+            what = (f"The partial file {writer.part} is kept: rerunning the same configuration "
+                    "resumes it from its last checkpoint (and stops here again); a changed "
+                    "configuration has a new hash and starts afresh.")
+        else:
+            writer.part.unlink(missing_ok=True)
+            what = "Nothing was kept (the run stopped before its first checkpoint)."
+        raise protocol.SimulationError(f"{e} {what}") from None
     except BaseException:
         writer.close()
         raise
