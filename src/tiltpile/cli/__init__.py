@@ -3,18 +3,22 @@
 Each module in this package registers its subcommand (``add_parser(subparsers)``) and
 implements it (``run(args) -> int``); library modules keep only their Python API. Every command
 validates its whole input first; on bad input it prints one line naming the problem and exits
-with status 2, having written nothing.
+with status 2, having written nothing. Failures past validation are one line too, exit status 1:
+a damaged or unusable run file (``store.RunFileError``, also another process writing the same
+file), a failed write (a full disk: "no space left on device while writing FILE; rerun to
+resume"), a health stop (``SimulationError``), an OS error naming its path.
 """
 
 from __future__ import annotations
 
 import argparse
 import importlib
+import os
 import sys
 
 from tiltpile import config as cfgmod
 
-COMMANDS = ("simulate", "ensemble", "observables", "report", "bench", "info", "export", "movie")
+COMMANDS = ("simulate", "ensemble", "observables", "verify", "report", "bench", "info", "export", "movie")
 
 
 def build_parser() -> argparse.ArgumentParser:
@@ -25,13 +29,58 @@ def build_parser() -> argparse.ArgumentParser:
     return p
 
 
+def _one_line(e: BaseException) -> str:
+    text = " ".join(str(e).split())
+    if isinstance(e, OSError) and not str(e).startswith(("no space", "cannot")):
+        from tiltpile.store import _describe_os_error
+
+        where = " -> ".join(str(p) for p in (e.filename, e.filename2) if p is not None)
+        text = f"{where + ': ' if where else ''}{_describe_os_error(e)}"
+    return text
+
+
+def _one_line_warnings(command: str) -> None:
+    """Our RuntimeWarnings (health, a discarded .part) as ``tiltpile <command>: warning: ...``."""
+    import warnings
+
+    default = getattr(warnings.formatwarning, "tiltpile_default", warnings.formatwarning)
+
+    def fmt(message, category, filename, lineno, line=None):
+        if issubclass(category, RuntimeWarning) and "tiltpile" in str(filename):
+            return f"tiltpile {command}: warning: {message}\n"
+        return default(message, category, filename, lineno, line)
+
+    fmt.tiltpile_default = default
+    warnings.formatwarning = fmt
+
+
+def _exit_if_hdf5_is_broken(status: int) -> None:
+    """An HDF5 file whose writes failed (a disk filled by another process under a run) crashes
+    HDF5 when it is closed, also at interpreter exit: leave at once, the line printed. What is on
+    disk is resumed (and checked) by the next run."""
+    from tiltpile import store
+
+    if store._BROKEN:
+        sys.stdout.flush()
+        sys.stderr.flush()
+        os._exit(status)
+
+
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    _one_line_warnings(args.command)
+    from tiltpile.sim.protocol import SimulationError
+    from tiltpile.store import MixedConfigError, RunBusyError, RunExistsError, RunFileError
+
     try:
         return args.func(args)
-    except cfgmod.ConfigError as e:
-        print(f"tiltpile {args.command}: error: {e}", file=sys.stderr)
+    except (cfgmod.ConfigError, RunBusyError, RunExistsError, MixedConfigError) as e:  # refused: nothing was done
+        print(f"tiltpile {args.command}: error: {_one_line(e)}", file=sys.stderr)
         return 2
+    except (RunFileError, SimulationError, OSError) as e:
+        print(f"tiltpile {args.command}: error: {_one_line(e)}", file=sys.stderr)
+        _exit_if_hdf5_is_broken(1)
+        return 1
     except KeyboardInterrupt:
         print(getattr(args, "interrupted", "interrupted"), file=sys.stderr)
         return 130

@@ -9,9 +9,11 @@ A command module (``tiltpile/cli/<name>.py``) defines ``add_parser(subparsers)``
 from __future__ import annotations
 
 import argparse
+import re
 from pathlib import Path
 
 from tiltpile import config as cfgmod
+from tiltpile.paths import check_output  # noqa: F401  (re-exported for the command modules)
 
 ConfigError = cfgmod.ConfigError
 
@@ -30,11 +32,10 @@ def load_config(args) -> cfgmod.Config:
 
 
 def seed(text: str) -> int:
-    """argparse type of a seed: a non-negative integer."""
+    """argparse type of a seed: decimal digits only (not ``1_0``, ``+5``, `` 5``), 0..2**63-1."""
+    if not re.fullmatch(r"[0-9]+", text):
+        raise argparse.ArgumentTypeError(f"seed must be a non-negative integer (digits 0-9 only), got {text!r}")
     try:
-        v = int(text)
-    except ValueError:
-        raise argparse.ArgumentTypeError(f"seed must be a non-negative integer, got {text!r}") from None
-    if v < 0:
-        raise argparse.ArgumentTypeError(f"seed must be a non-negative integer, got {v}")
-    return v
+        return cfgmod.check_seed(int(text))
+    except cfgmod.ConfigError as e:
+        raise argparse.ArgumentTypeError(str(e)) from None

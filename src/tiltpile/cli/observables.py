@@ -17,12 +17,25 @@ def add_parser(sub) -> None:
 
 
 def run(args) -> int:
-    """Print the per-run table."""
+    """Print the per-run table. Refuses a directory whose runs hold more than one configuration
+    (or another than its ``ensemble.json``) and any run file whose layout is damaged; a damaged
+    dataset stops the computation with one line naming the file and the dataset."""
     from tiltpile.analysis import compute_observables
+    from tiltpile.ensemble import read_manifest
+    from tiltpile.paths import check_output
+    from tiltpile.store import common_config
 
     d = Path(args.dir)
     if not d.is_dir():
         raise ConfigError(f"{d}: no such ensemble directory")
+    if args.workers is not None and args.workers < 1:
+        raise ConfigError(f"--workers must be at least 1, got {args.workers}")
+    files = sorted(d.glob("run_*.h5"))
+    if not files:
+        raise ConfigError(f"{d}: no run_*.h5 files to analyse")
+    manifest = read_manifest(d)
+    common_config(files, manifest["config_hash"] if manifest else None)
+    check_output(d / "observables", "cache directory", directory=True)
     table = compute_observables(d, workers=args.workers, progress=not args.quiet, force=args.force)
     if len(table) == 0:
         raise ConfigError(f"{d}: no run_*.h5 files to analyse")

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from tiltpile.cli._common import ConfigError, add_config_args, load_config, seed
+from tiltpile.cli._common import ConfigError, add_config_args, check_output, load_config, seed
 
 INTERRUPTED = "interrupted; an unfinished run file stays as NAME.h5.part and resumes next time"
 
@@ -15,7 +15,8 @@ def add_parser(sub) -> None:
     add_config_args(s)
     s.add_argument("--seed", type=seed, required=True)
     s.add_argument("--out", required=True, help="run file to write (NAME.h5; NAME.h5.part while running)")
-    s.add_argument("--force", action="store_true", help="overwrite an existing complete run file")
+    s.add_argument("--force", action="store_true",
+                   help="replace an existing complete run file (only once the new run is complete)")
     s.add_argument("--no-resume", action="store_true", help="ignore an interrupted NAME.h5.part")
     s.add_argument("--quiet", action="store_true", help="no progress bar")
     s.set_defaults(func=run, interrupted=INTERRUPTED)
@@ -29,10 +30,15 @@ def run(args) -> int:
     out = Path(args.out)
     if out.suffix != ".h5":
         raise ConfigError(f"--out {out}: run files end in .h5")
+    check_output(out, "--out")
     if out.exists() and not args.force:
-        raise ConfigError(f"--out {out} exists; pass --force to overwrite it")
-    if out.exists():
-        out.unlink()
-    summary = simulate(cfg, args.seed, out, progress=not args.quiet, resume=not args.no_resume)
+        from tiltpile.store import remove_stale_checkpoint, writer_lock
+
+        with writer_lock(out):  # a checkpoint a kill left beside the finished file is garbage
+            remove_stale_checkpoint(out)
+        raise ConfigError(f"--out {out} exists; pass --force to replace it")
+    # --force: the old file stays until the new run is complete (the final rename replaces it)
+    summary = simulate(cfg, args.seed, out, progress=not args.quiet, resume=not args.no_resume,
+                       overwrite=args.force)
     print(json.dumps(summary))
     return 0
