@@ -206,3 +206,84 @@ def test_last_frame_placeholder_never_enters_the_correlation():
                                   "period": 0}))
     c = st.correlation_function_ensemble(pd.concat(rows), taus=[0]).set_index("tau")
     assert c.loc[0, "C"] == pytest.approx(1.0) and c.loc[0, "n_pairs"] == 2 * 20
+
+
+# ---------------------------------------------------------------------------------------------
+# Fig. 2b: two populations, bins on integer counts; bootstrap over runs
+
+
+def test_bimodality_tells_two_populations_from_one():
+    rng = np.random.default_rng(3)
+    two = np.r_[rng.normal(-3.0, 0.3, 3000), rng.normal(-1.3, 0.2, 300)]
+    b = st.bimodality(two, cutoff=np.log10(0.02))
+    assert b["delta_bic"] > 100 and b["ashman_d"] > 4 and b["valley_depth"] > 0.8
+    assert b["means"][0] == pytest.approx(-3.0, abs=0.05)
+    assert b["means"][1] == pytest.approx(-1.3, abs=0.05)
+    assert b["weights"][1] == pytest.approx(300 / 3300, abs=0.02)
+    assert b["cutoff_between_means"] and b["cutoff_density_ratio"] < 0.5
+    assert -2.5 < b["valley"] < -1.5
+    # one population, even a skewed one (a log-normal tail), has no valley
+    for one in (rng.normal(-3.0, 0.5, 3000), np.log10(rng.lognormal(0.0, 1.0, 3000) + 1.0)):
+        b1 = st.bimodality(one)
+        assert b1["valley_depth"] == 0.0 and np.isnan(b1["valley"])
+        assert b1["ashman_d"] < 2
+    assert np.isnan(st.bimodality([1.0, 2.0])["ashman_d"])        # too few samples
+
+
+def test_lost_fraction_edges_put_each_small_count_alone():
+    c = np.full(200, 1000.0)
+    k = np.r_[np.arange(1, 101), np.arange(1, 101)]
+    e = st.lost_fraction_edges(k, c, bins_per_decade=10)
+    counts, _ = np.histogram(k / c, bins=e)
+    assert counts.sum() == k.size                                  # every positive frame binned
+    # counts 1..4: one integer per bin, each bin holds exactly its two frames
+    assert counts[:4].tolist() == [2] * 4
+    # every edge on a half-integer count: each bin holds whole counts, two frames per count
+    assert np.allclose(e * 1000.0 % 1.0, 0.5) and np.all(counts % 2 == 0)
+    assert np.all(np.diff(np.log10(e))[10:] <= 0.1 + 0.02)        # log-spaced above
+    assert st.lost_fraction_edges([0, 0], [10, 10]).size == 0
+
+
+def test_bootstrap_ci_covers_and_handles_degenerate_runs():
+    x = [7.1, 11.7, 10.1, 7.55, 11.45, 10.1]
+    ci = st.bootstrap_ci(x)
+    assert ci["estimate"] == pytest.approx(np.mean(x)) and ci["n"] == 6
+    assert min(x) < ci["low"] < np.mean(x) < ci["high"] < max(x)
+    assert st.bootstrap_ci([2.0, 2.0, 2.0])["low"] == 2.0
+    assert np.isnan(st.bootstrap_ci([1.0, 2.0])["low"])           # two runs: no interval
+    assert st.bootstrap_ci([1.0, np.nan, 3.0, 2.0])["n"] == 3
+    # coverage: the 95% interval of the mean of 6 normal runs holds the true mean most times
+    rng = np.random.default_rng(0)
+    hit = [(lambda c: c["low"] <= 0.0 <= c["high"])(st.bootstrap_ci(rng.normal(0, 1, 6),
+                                                                   n_resamples=999))
+           for _ in range(40)]
+    assert 0.7 <= np.mean(hit) <= 1.0
+
+
+def test_bootstrap_runs_ci_resamples_whole_runs():
+    runs = [np.full(10, v) for v in (1.0, 2.0, 3.0, 4.0)]
+    ci = st.bootstrap_runs_ci(runs, lambda g: float(np.mean(np.concatenate(g))), n_resamples=500)
+    assert ci["estimate"] == pytest.approx(2.5) and ci["n"] == 4 and ci["n_failed"] == 0
+    assert 1.0 <= ci["low"] < 2.5 < ci["high"] <= 4.0
+
+
+def test_cell_density_2d_spreads_each_sample_over_its_cell_and_has_no_comb():
+    xe = np.linspace(0.0, 4.0, 41)                  # bins of 0.1
+    ye = np.linspace(0.0, 1.0, 11)
+    # one sample on a cell of 0.4 x 0.2 spreads over 4 x 2 bins, evenly
+    h, out = st.cell_density_2d([2.0], [0.5], [0.4], [0.2], xe, ye)
+    assert out == pytest.approx(0.0) and (h * 0.1 * 0.1).sum() == pytest.approx(1.0)
+    nz = np.argwhere(h > 1e-9)
+    assert sorted(set(nz[:, 0])) == list(range(18, 22)) and sorted(set(nz[:, 1])) == [4, 5]
+    assert np.allclose(h[h > 1e-9], h[h > 1e-9][0])
+    # uniform values on lattices 1/s for s = 2..9, each sample over its cell: flat, no comb
+    rng = np.random.default_rng(0)
+    s = rng.integers(2, 10, 20000)
+    x = np.round(rng.uniform(1.0, 3.0, s.size) * s) / s
+    h, _ = st.cell_density_2d(x, np.full(s.size, 0.55), 1.0 / s, np.full(s.size, 0.1), xe, ye)
+    col = h[12:28, 5]                                # x in 1.2 .. 2.8, away from the ends
+    assert col.std() / col.mean() < 0.05
+    plain, _, _ = np.histogram2d(x, np.full(s.size, 0.55), bins=(xe, ye), density=True)
+    assert plain[12:28, 5].std() / plain[12:28, 5].mean() > 0.3    # the comb it removes
+    with pytest.raises(st.InsufficientDataError):
+        st.cell_density_2d([np.nan], [0.0], [1.0], [1.0], xe, ye)
