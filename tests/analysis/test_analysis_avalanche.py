@@ -1,5 +1,7 @@
 """Avalanche segmentation on synthetic lost-fraction series."""
 
+from pathlib import Path
+
 import numpy as np
 import pandas as pd
 import pytest
@@ -117,3 +119,74 @@ def test_onset_robustness_ensemble_per_run():
     rob = av.onset_robustness_ensemble(frames)
     assert rob.groupby("run")["ref_frame"].first().tolist() == [21, 16]
     assert rob.groupby("run")["shift_frames"].apply(list).tolist() == [[-1, 0, 1, 2]] * 2
+
+
+# ---------------------------------------------------------------------------------------------
+# first large slide: kinetic energy above a threshold, sustained over a span of tilt
+
+
+def _ke_series():
+    theta = 0.05 * np.arange(60)                       # 0 .. 2.95 deg
+    ke = np.full(60, 1e-6)
+    ke[10:13] = 1e-3                                   # precursor: 3 frames, span 0.10 deg
+    ke[20] = np.nan                                    # a missing value breaks a stretch
+    ke[18:20] = 1e-3
+    ke[21:25] = 1e-3                                   # 18-24 with a hole: spans 0.05 and 0.15
+    ke[30:45] = 2e-3                                   # slide: 15 frames, span 0.70 deg
+    ke[55:60] = 1e-2                                   # runs to the end: span 0.20 deg
+    return theta, ke
+
+
+def test_first_slide_needs_the_span():
+    theta, ke = _ke_series()
+    assert av.first_slide(theta, ke, 5e-4, 0.5) == pytest.approx(theta[30])
+    assert av.first_slide(theta, ke, 5e-4, 0.0) == pytest.approx(theta[10])   # any frame above
+    assert av.first_slide(theta, ke, 5e-4, 0.1) == pytest.approx(theta[10])   # 10-12 spans 0.10
+    assert av.first_slide(theta, ke, 5e-4, 0.15) == pytest.approx(theta[21])  # NaN at 20 splits
+    # the threshold decides which frames flow: above the slide's energy only the last stretch
+    assert av.first_slide(theta, ke, 5e-3, 0.15) == pytest.approx(theta[55])
+    assert np.isnan(av.first_slide(theta, ke, 5e-3, 0.5))    # still short when the run ends
+    assert np.isnan(av.first_slide(theta, ke, 1.0, 0.0))      # nothing above
+    assert np.isnan(av.first_slide(theta, ke, np.nan, 0.5))   # no threshold: no slide
+    with pytest.raises(ValueError):
+        av.first_slide(theta, ke[:-1], 5e-4, 0.5)
+    with pytest.raises(ValueError):
+        av.first_slide(theta, ke, 5e-4, -1.0)
+
+
+def test_run_onsets_both_ways_per_run():
+    theta, ke = _ke_series()
+    lf = np.full(60, 0.001)
+    lf[10] = 0.05                                       # the precursor loses 5% of its contacts
+    lf[-1] = np.nan
+    seg = av.segment_avalanches(lf, 0.02)
+    onset = np.zeros(60, bool)
+    onset[seg["onsets"]] = True
+    one = pd.DataFrame({"run": 7, "frame": np.arange(60), "theta_deg": theta, "ke_trans": ke,
+                        "onset": onset, "avalanching": seg["avalanching"]})
+    calm = one.assign(run=3, ke_trans=1e-6, onset=False)
+    t = av.run_onsets(pd.concat([one, calm]), 5e-4, 0.5)
+    assert t["run"].tolist() == [3, 7]
+    r3, r7 = t.iloc[0], t.iloc[1]
+    assert r7["theta_first_onset"] == pytest.approx(theta[10])
+    assert r7["theta_first_slide"] == pytest.approx(theta[30])
+    assert r7["slide_minus_onset"] == pytest.approx(theta[30] - theta[10])
+    assert r7["n_onsets"] == 1 and r7["theta_end"] == pytest.approx(theta[-1])
+    assert np.isnan(r3["theta_first_onset"]) and np.isnan(r3["theta_first_slide"])
+
+
+def test_run_table_takes_the_slide_parameters_of_the_analysis():
+    from tiltpile.analysis import observables as ob
+    theta, ke = _ke_series()
+    fr = pd.DataFrame({"run": 1, "frame": np.arange(60), "theta_deg": theta, "ke_trans": ke,
+                       "onset": False, "avalanching": False})
+    t = ob.run_table(fr, slide_ke=5e-4)                          # default span 0.5 deg
+    assert t["theta_first_slide"].iloc[0] == pytest.approx(theta[30])
+    assert t["slide_ke"].iloc[0] == 5e-4 and t["slide_sustain_deg"].iloc[0] == 0.5
+    t = ob.run_table(fr, slide_ke=5e-4, slide_sustain_deg=0.1)
+    assert t["theta_first_slide"].iloc[0] == pytest.approx(theta[10])
+    for bad in ({"slide_ke": 0.0}, {"slide_sustain_deg": -0.5}, {"slide_span": 1.0}):
+        with pytest.raises((ValueError, TypeError)):
+            ob.run_table(fr, **bad)
+    # the slide parameters do not make the per-frame caches stale
+    assert "slide_ke" not in ob._source_meta(Path(__file__), ob._params({}))["params"]

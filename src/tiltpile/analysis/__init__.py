@@ -9,7 +9,8 @@ Modules (imports point down; none reads HDF5 except through :mod:`tiltpile.store
 ``avalanche``    quiet / avalanching periods, onsets, theta_m, theta - theta_m, cutoff robustness
 ``stats``        log-binned densities, P(s) maximum-likelihood fit, C(tau), failure enhancement,
                  delta z versus cluster size
-``observables``  per-run tables (per frame, per cluster), cached beside the runs
+``observables``  per-run tables (per frame, per cluster), cached beside the runs; per-run onsets
+                 (first 2% onset, first large slide: ``run_table``)
 
 Quick use::
 
@@ -21,10 +22,12 @@ from .avalanche import (
     ResolutionWarning,
     criterion_resolution,
     displacement_since_period_start,
+    first_slide,
     frame_spacing_check,
     onset_robustness,
     onset_robustness_ensemble,
     resegment,
+    run_onsets,
     segment_avalanches,
     stretches,
     theta_relative_to_onset,
@@ -67,11 +70,15 @@ from .observables import (
     load_observables,
     run_files,
     run_observables,
+    run_table,
 )
 from .stats import (
     InsufficientDataError,
     PoorFitWarning,
     PowerLawCutoffFit,
+    bimodality,
+    bootstrap_ci,
+    bootstrap_runs_ci,
     cluster_peaks,
     cluster_size_windows,
     correlation_function,
@@ -83,7 +90,10 @@ from .stats import (
     failure_enhancement,
     failure_enhancement_ensemble,
     fit_power_law_cutoff,
+    ke_threshold,
     log_binned_density,
+    lost_fraction_edges,
+    power_law_departure,
     sample_power_law_cutoff,
 )
 

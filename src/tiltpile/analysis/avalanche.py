@@ -45,6 +45,19 @@ and simulated series):
   re-formed between two far-apart frames are not counted, so a short event can vanish. In the
   smoke run of seed 1 with every 20th frame (2 deg) the first frame above 2% moves from 6.9 to
   18 deg, and neither median flags it.
+
+Onset measured two ways (:func:`first_slide`, :func:`run_onsets`)
+------------------------------------------------------------------
+The paper's theta_m is the first frame losing more than the cutoff of its contacts; in our piles
+that fires first on *precursor* rearrangements (compaction and shear of the top ~12 d, kinetic
+energy per grain 1e-5 to 5e-4 m g d). The avalanche angle of the literature (~21 deg for these
+piles, Deboeuf et al. 2005) is the large surface *slide* (1e-3 to 1e-2 m g d per grain). A slide
+is detected on the kinetic energy per grain E(theta): the first maximal stretch of consecutive
+frames with E > threshold (the Fig. 2a threshold, where the energy density leaves the quiet power
+law) that is *sustained*, i.e. whose frames span at least ``sustain_deg`` of tilt
+(theta_last - theta_first >= sustain_deg). Precursors cross the threshold for a frame or a few;
+a slide keeps the pile above it while the tilt goes on. The slide angle is theta of the stretch's
+first frame. ``docs/figures.md`` (Fig. 2) gives the measured durations behind the default span.
 """
 
 from __future__ import annotations
@@ -275,3 +288,58 @@ def resegment(frames: pd.DataFrame, cutoff: float = 0.02, merge_gap: int = 0) ->
     for c in new.columns:
         out[c] = new[c]
     return out
+
+
+def first_slide(theta_deg, ke_per_grain, threshold: float, sustain_deg: float) -> float:
+    """Tilt angle of the first sustained large slide (module docstring, "Onset measured two ways").
+
+    theta_deg (F,) increasing tilt of the frames (deg); ke_per_grain (F,) kinetic energy per
+    grain (m g d); threshold: energy per grain above which a frame is flowing; sustain_deg: the
+    least tilt span (theta of the stretch's last frame minus its first, deg) of consecutive
+    flowing frames that counts as a slide (0: any single frame above the threshold).
+    A non-finite energy breaks a stretch. Returns theta of the first frame of the first sustained
+    stretch, NaN when there is none (also with a non-finite threshold). A stretch still running
+    at the last frame counts only if it already spans ``sustain_deg``.
+    """
+    theta = np.asarray(theta_deg, dtype=float).ravel()
+    ke = np.asarray(ke_per_grain, dtype=float).ravel()
+    if theta.shape != ke.shape:
+        raise ValueError(f"first_slide: theta_deg {theta.shape} and ke_per_grain {ke.shape} differ")
+    if not np.isfinite(threshold) or not sustain_deg >= 0:
+        if not sustain_deg >= 0:
+            raise ValueError(f"first_slide: sustain_deg must be >= 0, got {sustain_deg}")
+        return float("nan")
+    with np.errstate(invalid="ignore"):
+        above = np.isfinite(ke) & (ke > threshold)
+    for s, e in zip(*stretches(above)):
+        if theta[e - 1] - theta[s] >= sustain_deg - 1e-9:
+            return float(theta[s])
+    return float("nan")
+
+
+def run_onsets(frames: pd.DataFrame, ke_threshold: float, sustain_deg: float,
+               ke_column: str = "ke_trans") -> pd.DataFrame:
+    """Per run: the first onset by the lost-contact cutoff and the first sustained slide.
+
+    frames: per-frame table (run, frame, theta_deg, onset, avalanching and ``ke_column``), as from
+    :func:`tiltpile.analysis.load_observables`. ke_threshold, sustain_deg: :func:`first_slide`.
+    Returns a DataFrame, one row per run (sorted): run, n_frames, theta_end (last frame's tilt),
+    n_onsets, theta_first_onset (NaN: no onset), theta_first_slide (NaN: no sustained slide
+    before theta_end), slide_minus_onset (deg), ke_max (largest energy per grain of the run).
+    """
+    rows = []
+    for run, g in frames.sort_values(["run", "frame"], kind="stable").groupby("run", sort=True):
+        th = g["theta_deg"].to_numpy(float)
+        ke = g[ke_column].to_numpy(float)
+        on = g["onset"].to_numpy(bool)
+        t_on = float(th[on][0]) if on.any() else float("nan")
+        t_sl = first_slide(th, ke, ke_threshold, sustain_deg)
+        fin = ke[np.isfinite(ke)]
+        rows.append({"run": int(run), "n_frames": int(th.size),
+                     "theta_end": float(th[-1]) if th.size else float("nan"),
+                     "n_onsets": int(on.sum()), "theta_first_onset": t_on,
+                     "theta_first_slide": t_sl, "slide_minus_onset": t_sl - t_on,
+                     "ke_max": float(fin.max()) if fin.size else float("nan")})
+    cols = ["run", "n_frames", "theta_end", "n_onsets", "theta_first_onset", "theta_first_slide",
+            "slide_minus_onset", "ke_max"]
+    return pd.DataFrame(rows, columns=cols)

@@ -22,6 +22,8 @@ per frame (one row per stored frame k)
 per cluster (one row per critical cluster per frame)
     run, frame, theta_deg, avalanching, theta_to_onset, cluster, size, z, n_m, dz,
     orientation_deg, phi_deg, rg_long, rg_short, x_com, y_com   (clusters.py)
+    n_unstable   grains of the cluster with z_i - m_i / 2 < 3/2 (single-grain criterion)
+    speed_max    largest speed of a grain of the cluster (sqrt(g d))
 
 ``compute_observables(DIR)`` does this for every ``DIR/run_*.h5`` whose cache
 ``DIR/observables/run_*.npz`` is missing or stale (run file size or mtime changed, or other
@@ -51,7 +53,7 @@ from . import avalanche as _av
 from . import clusters as _cl
 from . import contacts as _ct
 
-ANALYSIS_VERSION = 1
+ANALYSIS_VERSION = 2   # 2: cluster columns n_unstable, speed_max
 CACHE_DIRNAME = "observables"
 
 DEFAULT_PARAMS = {
@@ -65,7 +67,13 @@ DEFAULT_PARAMS = {
     "merge_gap": 0,          # avalanche merging of short quiet gaps (frames)
     "lost_gap": None,        # None: a contact is lost when its f_n drops to 0 (force definition);
                              # a gap g (d): only if it has also opened by more than g (geometric)
+    # first large slide of a run (run_table; avalanche.first_slide), not part of the cached tables:
+    "slide_ke": None,        # KE per grain (m g d) above which a frame flows; None: the ensemble's
+                             # Fig. 2a threshold (stats.ke_threshold)
+    "slide_sustain_deg": 0.5,  # least tilt span of consecutive flowing frames that is a slide
 }
+# parameters of the per-run table only: they do not enter the per-frame cache or its freshness
+RUN_TABLE_PARAMS = ("slide_ke", "slide_sustain_deg")
 
 FRAME_COLUMNS = [
     "run", "frame", "step", "time", "theta_deg", "iterations", "residual",
@@ -79,6 +87,7 @@ FRAME_COLUMNS = [
 CLUSTER_COLUMNS = [
     "run", "frame", "theta_deg", "avalanching", "theta_to_onset", "cluster", "size", "z", "n_m",
     "dz", "orientation_deg", "phi_deg", "rg_long", "rg_short", "x_com", "y_com",
+    "n_unstable", "speed_max",
 ]
 
 
@@ -96,6 +105,10 @@ def _params(overrides: dict) -> dict:
         raise ValueError(f"cutoff must be in (0, 1), got {p['cutoff']}")
     if p["lost_gap"] is not None and not p["lost_gap"] >= 0.0:
         raise ValueError(f"lost_gap must be None or >= 0 (d), got {p['lost_gap']}")
+    if p["slide_ke"] is not None and not p["slide_ke"] > 0.0:
+        raise ValueError(f"slide_ke must be None or > 0 (m g d per grain), got {p['slide_ke']}")
+    if not p["slide_sustain_deg"] >= 0.0:
+        raise ValueError(f"slide_sustain_deg must be >= 0 (deg), got {p['slide_sustain_deg']}")
     return p
 
 
@@ -175,6 +188,17 @@ def frame_observables(radius, fixed, box_length, position, velocity, omega, pair
     z_full = _ct.contact_counts(n, pair, active)
     m_full = _ct.contact_counts(n, pair, mobil)
     ctab = _cl.cluster_table(labels, position, z_full, m_full, theta_deg)
+    # grains failing the single-grain criterion z_i - m_i / 2 >= (d + 1) / 2 (paper, Fig. 6), and
+    # the fastest grain: a cluster holding a grain that cannot be at rest (docs/figures.md, Fig. 6)
+    inc = labels >= 0
+    unstable = inc & (z_full - m_full / 2.0 < 1.5 - 1e-9)
+    speed = np.hypot(*np.asarray(velocity, dtype=float).reshape(-1, 2).T)
+    k = len(ctab)
+    ctab["n_unstable"] = np.bincount(labels[unstable], minlength=k)[:k].astype(np.int64)
+    vmax = np.zeros(k)
+    if k:
+        np.maximum.at(vmax, labels[inc], speed[inc])
+    ctab["speed_max"] = vmax
     rest = bulk & ~bc["rattler"] & (labels < 0)
     z_rest, _, n_rest = _ct.coordination(bc["z_i"], bc["m_i"], rest)
     e_t, e_r = _ct.kinetic_energy(radius, velocity, omega)
@@ -314,8 +338,9 @@ def _cache_path(run_path: Path) -> Path:
 
 def _source_meta(run_path: Path, params: dict) -> dict:
     st = run_path.stat()
+    cached = {k: v for k, v in params.items() if k not in RUN_TABLE_PARAMS}
     return {"source": run_path.name, "size": st.st_size, "mtime_ns": st.st_mtime_ns,
-            "params": params, "version": ANALYSIS_VERSION}
+            "params": cached, "version": ANALYSIS_VERSION}
 
 
 def _read_meta(cache: Path) -> dict | None:
@@ -445,3 +470,24 @@ def load_observables(ensemble_dir, compute_missing: bool = True, workers: int | 
         warnings.warn("several run files share a run id (seed); rows of the same run id mix",
                       RuntimeWarning, stacklevel=2)
     return frames.reset_index(drop=True), clusters.reset_index(drop=True)
+
+
+def run_table(frames: pd.DataFrame, **params) -> pd.DataFrame:
+    """Per run: the first onset by the lost-contact cutoff and the first large slide.
+
+    frames: the ensemble's per-frame table (:func:`load_observables`, same params). params:
+    overrides of DEFAULT_PARAMS; ``slide_ke`` (None: the Fig. 2a threshold of these frames,
+    :func:`tiltpile.analysis.stats.ke_threshold` on ke_trans) and ``slide_sustain_deg`` set the
+    slide (:func:`tiltpile.analysis.avalanche.first_slide`). Returns
+    :func:`tiltpile.analysis.avalanche.run_onsets` plus the columns slide_ke and
+    slide_sustain_deg (the values used).
+    """
+    from . import stats as _st
+    p = _params(params)
+    thr = p["slide_ke"]
+    if thr is None:
+        thr = _st.ke_threshold(frames, "ke_trans")[0]["threshold"]
+    out = _av.run_onsets(frames, float(thr), float(p["slide_sustain_deg"]), "ke_trans")
+    out["slide_ke"] = float(thr)
+    out["slide_sustain_deg"] = float(p["slide_sustain_deg"])
+    return out
