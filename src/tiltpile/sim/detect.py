@@ -150,10 +150,10 @@ def interleave(ci, cj, n_bodies, window=INTERLEAVE_WINDOW):
     Greedy list scheduling over a lookahead of 4 * window contacts: each place takes the first
     waiting contact whose two bodies were last used more than ``window`` places ago, or the
     oldest waiting one if none qualifies. Why: a local solve reads and writes the velocities of
-    its two bodies, a chain of dependent arithmetic (~50 cycles, counted off the compiled loop,
-    not measured); in key order consecutive contacts share grain i, so each update waits for the
-    previous one. With the chains apart the CPU overlaps them (``solver._sweep_stored``).
-    Returns the permutation (C,) int64.
+    its two bodies in one chain of dependent arithmetic; in key order consecutive contacts share
+    grain i, so each update waits for the previous one. With the chains apart the CPU overlaps
+    them (``solver._sweep_stored``; the gain: ``docs/performance.md``).
+    ci, cj (C,) body indices; n_bodies N + 3. Returns the permutation (C,) int64.
     """
     nc = ci.shape[0]
     look = 4 * window

@@ -2,20 +2,16 @@
 
 Every kernel in ``tiltpile.sim`` is compiled with ``JIT``. ``fastmath`` stays off: it lets LLVM
 reassociate sums, which changes results between builds and breaks bit-for-bit determinism across
-machines. Measured on the NLGS sweep (python -m tiltpile.perf.solver_micro, 4000-grain bench pile, forward,
-CPU time per contact update, median of 5, machine shared): 21.9 ns without, 19.3 ns with
-fastmath={"contract"} (FMA only, reductions keep their order, deterministic on one machine but not
-across CPUs with and without FMA), 17.0 ns with fastmath=True: 1.13x and 1.29x, not enough to
-reach the 10 ns target of issue 6 and not worth run files that differ between machines.
+machines, for a gain on the sweep too small to pay for that (``docs/performance.md``; CHANGELOG).
 ``cache=True`` keeps compiled kernels on disk (``NUMBA_CACHE_DIR`` or ``__pycache__``).
 The flags are recorded in every run file (``store``), so a result can always be traced to them.
 
 Stale caches. numba checks a cached kernel only against its *own* source file, but a kernel
 carries the compiled code of the kernels it calls: after an edit of ``solver.py`` the cached
-``step.advance`` went on running the old NLGS sweep (measured: 43 ns per contact update
-instead of 15 ns, and it would as well have run old physics). So at import this module hashes all
-of ``sim/*.py`` and, when the hash differs from the one stamped in the cache directory, deletes
-the cached ``sim`` kernels there before anything is compiled.
+``step.advance`` went on running the old NLGS sweep, and could as well have run old physics.
+So at import this module hashes all of ``sim/*.py`` and, when the hash differs from the one
+stamped in the cache directory, deletes the cached ``sim`` kernels there before anything is
+compiled.
 """
 
 from __future__ import annotations

@@ -27,40 +27,37 @@ forward/backward in that order (a symmetric Gauss-Seidel); 2 random order, reshu
 sweep (Unger & Kertesz, PRE 67, 2003; Jean 1999), from a checkpointable RNG; 3 interleaved:
 forward over the list in the order of ``detect.interleave``, stored so at every rebuild, which
 keeps each contact within a few places of its key order but puts no body twice within 8
-consecutive places. Forward and interleaved sweep the stored list (``_sweep_stored``), which is
-what makes the interleaved order pay: in key order consecutive updates share grain i and wait
-for each other (module ``tiltpile.perf.solver_micro`` measures both).
+consecutive places. Forward and interleaved sweep the stored list (``_sweep_stored``): in key
+order consecutive updates share grain i and wait for each other, in interleaved order the CPU
+overlaps them (same sweeps per step, less time per sweep; ``docs/performance.md``).
 
 Over-relaxation (``relax`` = omega in (0, 2), projected SOR): each local solve moves the impulse
 omega times the plain correction, p_n <- max(0, p_n - omega W_nn^-1 (u_n + b)), then
 p_t <- clip(p_t - omega W_tt^-1 u_t, +-mu p_n), i.e. the over-relaxed value projected onto the
 Coulomb cone. omega = 1 is the plain NLGS (bit for bit). The first sweep of every step is plain
 (a lone contact, e.g. a disk landing on the floor, is then solved exactly in one sweep instead of
-oscillating towards it by factors 1 - omega). In a pile the forces relax diffusively
-under Gauss-Seidel; omega > 1 shortens that. Measured on the settled bench piles while tilting at
-tol 1e-6 (python -m tiltpile.perf.solver_variants): forward sweeps at omega 1.5 take 101 (n=1000) / 452 (n=4000)
-sweeps per step against 261 / 623 for random plain NLGS, with 2.4-4x less unbalanced force per
-grain left; omega >= 1.7 can oscillate between sticking and sliding states and hit max_iter.
+oscillating towards it by factors 1 - omega). In a pile the forces relax diffusively under
+Gauss-Seidel; omega > 1 shortens that, and omega >= 1.7 can oscillate between sticking and
+sliding states (what it gains: ``docs/performance.md``, "Optional SOR").
 
-Pruned sweeps (``prune``; ``solver.prune``, on by default). ~30% of the candidate contacts are
-open (alert distance 0.1 d); 17-18% of all candidates in the paper run are open with a gap that
-nothing in the pile closes within a step. Their local solve gives p = 0 and changes nothing,
-yet costs a full update in every sweep. A step still unconverged after PRUNE_AFTER sweeps
-sweeps a compacted list without them, with a full sweep every PRUNE_EVERY sweeps and at the
-cap, and ends on the compacted list only if none of them would now overlap. The sweeps are then
-those of the full list bit for bit, as long as none of the left-out contacts closes during the
-step: measured over 20 capped steps at 12, 17 and 24 deg of the paper run (0.68-0.85x the time
-per step), the whole paper run of seed 0, 10 000 steps of the seed-1 smoke pile settling at
-theta = 0, ``make figures`` and ``tests/test_pruned_sweeps.py``. A left-out contact that would
-overlap at the end is caught and the step goes on with full sweeps; one that closes and opens
-again in between is not. Either way the result is as converged, but the iterates differ from
-the full sweeps' from then on.
+Pruned sweeps (``prune``; ``solver.prune``, on by default). Many candidate contacts are open
+with a gap that nothing in the pile closes within the step (u_n + b > PRUNE_MARGIN); their local
+solve gives p = 0 and changes nothing, yet costs a full update in every sweep. A step still
+unconverged after PRUNE_AFTER sweeps sweeps a compacted list without them, with a full sweep
+every PRUNE_EVERY sweeps and at the cap, and ends on the compacted list only if none of them
+would now overlap. The sweeps are then those of the full list bit for bit, as long as none of the
+left-out contacts closes during the step (``tests/sim/test_pruned_sweeps.py``). A left-out
+contact that would overlap at the end is caught and the step goes on with full sweeps; one that
+closes and opens again in between is not. Either way the result is as converged, but the iterates
+differ from the full sweeps' from then on. What it saves and where it was checked:
+``docs/performance.md``, "Pruned sweeps".
 
 Convergence: the relative L2 change of the impulses over one sweep, divided by omega,
     r = sqrt(sum |p^k - p^(k-1)|^2 / sum |p^k|^2) / omega,
 (the change per sweep of an over-relaxed solve is omega times the plain local correction, so
-dividing by omega keeps r the size of the plain correction), stops when r <= tol (LMGC90's 'Quad' norm in spirit; tol 1e-4 is the usual setting, see
-Radjai & Richefeu, Mech. Mater. 41, 2009) or after ``max_iter`` sweeps. With no load at all
+dividing by omega keeps r the size of the plain correction), stops when r <= tol (LMGC90's
+'Quad' norm in spirit; tol 1e-4 is the usual setting, see Radjai & Richefeu, Mech. Mater. 41,
+2009) or after ``max_iter`` sweeps. With no load at all
 (sum |p|^2 = 0) r = 0. A small r after a sweep is not a small error when forces relax
 diffusively; the creep and convergence tests measure that error directly.
 """
@@ -84,9 +81,7 @@ OPEN, STICK, SLIDE = 0, 1, 2
 # step that has not converged sweeps only the contacts that can act, with a full sweep every
 # PRUNE_EVERY sweeps and as the last one at the cap. PRUNE_MARGIN [d / sqrt(d/g)]: an open contact
 # is left out when u_n + b > PRUNE_MARGIN (a gap of more than 0.01 d that is not closing, at
-# dt = 0.01); 100 g dt. At 0.1 the seed-1 smoke pile settling at theta = 0 parted from the full
-# sweeps at step 298 (a left-out contact closed; 188 sweeps instead of 186); at 1.0 it did not
-# in 10 000 steps.
+# dt = 0.01; 100 g dt). Why 1.0 and not 0.1: docs/performance.md, "Pruned sweeps".
 PRUNE_AFTER = 20
 PRUNE_EVERY = 100
 PRUNE_MARGIN = 1.0
@@ -117,6 +112,9 @@ def _push(vel, i, j, nx, ny, dpn, dpt):
 def nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm, relax=1.0, prune=False):
     """Sweep until the relative impulse change is <= tol or ``max_iter`` sweeps.
 
+    Arrays as in the module docstring (updated in place): ci, cj (C,); c (C, 8); status (C,) int8;
+    vel (N + 3, 4). mode: FORWARD, ALTERNATING, RANDOM or INTERLEAVED; rng_state the
+    checkpointable RNG of the random order; relax the over-relaxation omega in (0, 2).
     ``perm`` (C,) int64 is scratch for the random and alternating orders. ``prune`` (forward and
     interleaved sweeps): past ``PRUNE_AFTER`` sweeps, sweep only the contacts that can act
     (``_pruned_sweeps``). Returns (sweeps, residual, local solves made: sweeps x contacts
@@ -169,9 +167,7 @@ def _pruned_sweeps(ci, cj, c, vel, tol, it, last, w):
     Left out: open contacts (p_n = 0) whose end-of-step gap rate u_n + b exceeds PRUNE_MARGIN at
     the start. As long as u_n + b >= 0 stays true for them their local solve gives p = 0 and a
     full sweep would change nothing there, so these sweeps are bit for bit those of the full list
-    (the residual's sums only miss zeros). In the long steps that reach this (a moving pile,
-    17-18% of the candidates left out) a step took 0.68-0.85x the time (paper run, 12-24 deg).
-    The list keeps the stored order.
+    (the residual's sums only miss zeros). The list keeps the stored order.
 
     Returns (it, res, done, m): done when the residual reached tol and every contact left out
     still has u_n + b >= 0 (else, or at ``last``, the caller goes on with a full sweep, which
@@ -237,18 +233,15 @@ def _gap_rate(ci, cj, c, vel, a):
 def _sweep_stored(ci, cj, cf, vf, w):
     """One sweep over the contacts in their stored order (forward and interleaved sweeps).
 
-    Returns (sum |dp|^2, sum |p|^2). Written for the compiler, measured with
-    ``python -m tiltpile.perf.solver_micro``: the flat views cf = c.ravel(), vf = vel.ravel()
-    with unsigned indices carry no negative-index wrap-around code, and the clip to the cone is
-    min/max instead of branches. About 75 instructions per update; the whole update is then one
-    chain of dependent operations from reading vel[i] to writing it (~50 cycles, counted off the
-    asm, not measured), so the sweep is as fast as the *order* lets consecutive updates overlap
-    (``interleave``).
+    ci, cj (C,) body indices; cf = c.ravel() (8 C,), vf = vel.ravel() (4 (N + 3),), updated in
+    place; w the relaxation. Returns (sum |dp|^2, sum |p|^2) over the sweep.
 
-    The local solve is written out here rather than shared with ``_local_solution`` (random and
-    alternating sweeps, ``natural_residual``): the flat, unsigned indexing is what makes this
-    loop fast, and an inlined helper returning a tuple once made the sweep 2-3x slower (43
-    against ~20 ns per update, on the 2D kernel before this one).
+    Written for the compiler: flat views with unsigned indices carry no negative-index
+    wrap-around code, and the clip to the cone is min/max instead of branches, so each update is
+    one chain of dependent operations and the sweep is as fast as the *order* lets consecutive
+    updates overlap (``interleave``). The local solve is written out here rather than shared with
+    ``_local_solution`` (random and alternating sweeps, ``natural_residual``) because an inlined
+    helper returning a tuple made the sweep much slower (``docs/performance.md``).
     """
     nc = _U(ci.shape[0])
     num = 0.0

@@ -23,18 +23,13 @@ have been missed: the time step is too large for the alert distance).
 Overlap slop (``slop``: solver.overlap_slop, 1e-6 d in every preset; 0, the plain gap term, for a
 System built without it). With b = g / dt every overlap is pushed out in full in the next step.
 An NLGS stopped at its tolerance leaves velocity errors of about tol; integrated, they become
-overlaps of ~1e-8 d, which the next step's gap term turns back into a velocity target of the same
-size. Each step so restarts from an error of about tol and spends its sweeps removing it again:
-~200 sweeps per step on the 1000-grain bench pile held still, at every tol from 1e-5 to 1e-8 (the
-slowest NLGS mode loses ~0.1% per sweep). Overlaps up to ``slop`` are left alone (b = 0) and
-deeper ones are pushed back to ``slop``, not to zero -- the dead zone of Box2D's "linear slop"
-(E. Catto) applied to Moreau-Jean's gap term; overlaps then stay <= ~1.1 slop
-(tests/test_overlap_slop.py). Tilting that pile (deposited with slop 0) at tol 1e-6 (``python -m
-tiltpile.perf.solver_variants 1000 1000 50 pile_slop=0 random:1 forward:1 forward:1:1e-6:1e-6``):
-213 sweeps per step with slop 0, 13.6 with slop 1e-6, natural residual 5.9e-7 both. The price is
-drift: the median grain moves 1.5e-5 d per degree of tilt instead of 4.1e-7 d. A tighter tol buys
-it back: on the pile deposited with the slop, 3.2e-6 d/deg at tol 1e-7 (93 sweeps per step) and
-4.2e-7 d/deg at tol 1e-8 (481).
+tiny overlaps, which the next step's gap term turns back into a velocity target of the same size,
+so each step restarts from an error of about tol and spends its sweeps removing it again.
+Overlaps up to ``slop`` are left alone (b = 0) and deeper ones are pushed back to ``slop``, not
+to zero -- the dead zone of Box2D's "linear slop" (E. Catto) applied to Moreau-Jean's gap term;
+overlaps then stay <= ~1.1 slop (tests/sim/test_overlap_slop.py). The price is a small drift of a
+pile below its failure angle, which a tighter tol buys back. What it saves and costs, measured:
+``docs/performance.md``, "Overlap slop".
 
 Energy balance. With perfectly inelastic contacts, Coulomb friction and a converged solver the
 change of kinetic energy over a step is at most the work of gravity: with v' = v + dt g + M^-1 H p,
