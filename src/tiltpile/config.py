@@ -226,7 +226,11 @@ def _check_value(section: str, f: dataclasses.Field, value: Any) -> Any:
     elif typ is float:
         if isinstance(value, bool) or not isinstance(value, (int, float)):
             raise ConfigError(f"{name}: expected a number, got {value!r} ({type(value).__name__})")
-        value = float(value)
+        try:
+            value = float(value)
+        except OverflowError:
+            raise ConfigError(f"{name}: expected a finite number, got an integer of "
+                              f"{len(str(abs(value)))} digits") from None
         if not math.isfinite(value):
             raise ConfigError(f"{name}: expected a finite number, got {value!r}")
     elif typ is str:
@@ -294,7 +298,10 @@ def from_dict(data: dict[str, Any], base: Config | None = None) -> Config:
 
 def _check_consistency(cfg: Config) -> None:
     if cfg.scene.box_length < 2 * (1 + cfg.scene.polydispersity) * cfg.scene.fill_spacing:
-        raise ConfigError("scene.box_length is too short to hold a row of grains")
+        raise ConfigError(
+            f"scene.box_length = {cfg.scene.box_length!r} is too short to hold a row of grains: it must be "
+            f"at least 2 (1 + scene.polydispersity) scene.fill_spacing = "
+            f"{2 * (1 + cfg.scene.polydispersity) * cfg.scene.fill_spacing:.4g}")
     pre = cfg.protocol.pretilt_deg
     if pre and pre[-1] != 0.0:
         raise ConfigError(f"protocol.pretilt_deg = {list(pre)!r} must end at 0.0: the analysed ramp "
