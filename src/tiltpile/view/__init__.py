@@ -8,4 +8,6 @@ from :mod:`tiltpile.analysis`; nothing below ``view`` imports it):
 ``export``   extended XYZ (OVITO, ASE) and VTK XML (ParaView) writers
 ``movie``    the pile drawn as in the paper's Fig. 3, frame after frame, to mp4 or GIF
 ``info``     a one-screen summary of a run file or an ensemble directory
+``diagnostics``  per-frame health series of a run and the ensemble's first onsets
+                 (``notebooks/run_diagnostics.ipynb``)
 """

@@ -76,7 +76,7 @@ class PileArtist:
         self.pal = _palette()
         L, H = float(box_length), float(height)
         self.L, self.H = L, H
-        margin = max(0.12 * L, 0.45 * H)           # right of the box: the gravity arrow
+        margin = max(0.06 * L, 0.3 * H)            # right of the box: the gravity arrow
         xr = (-0.02 * L, L + margin)
         yr = (-0.04 * H, H)
         top_in, bottom_in = 0.62, 0.08                # title and legend lines, bottom
@@ -104,12 +104,12 @@ class PileArtist:
                                        zorder=3, capstyle="round")
         ax.add_collection(self.chains)
         ax.add_collection(self.critical)
-        self.cx, self.cy, self.glen = L + 0.5 * margin, 0.5 * H, 0.35 * min(margin, H)
+        self.cx, self.cy, self.glen = L + 0.5 * margin, 0.5 * H, 0.3 * H
         self.arrow = FancyArrowPatch((self.cx, self.cy), (self.cx, self.cy - self.glen),
                                      arrowstyle="-|>", mutation_scale=15, lw=1.5,
                                      color=self.pal["gravity"], zorder=4)
         ax.add_patch(self.arrow)
-        ax.text(self.cx + 0.06 * margin, self.cy + 0.1 * self.glen, "g",
+        ax.text(self.cx + 0.1 * H, self.cy + 0.3 * self.glen, "g",
                 color=self.pal["gravity"], fontstyle="italic", fontsize=12)
         self.title = fig.text(0.01, 1.0 - 0.05 / h_in, "", ha="left", va="top", fontsize=10)
         self.cmap = matplotlib.colormaps["viridis"]
