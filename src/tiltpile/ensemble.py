@@ -21,14 +21,16 @@ client as runs start and finish): ``config`` (the validated configuration), ``co
 run's ``health`` summary with its ``warnings`` (``tiltpile.health``), ``numba_cache_misses``),
 ``tiltpile_version`` and library ``versions``, and one entry per invocation in ``invocations``.
 
-Idempotent and resumable. A seed whose complete run file exists is skipped. Anything else is
+Idempotent and resumable. A seed whose complete run file exists and passes ``store.verify``
+(layout and every checksum) is skipped; one that fails is moved aside to ``run_SSSS.h5.damaged``
+(saying so on stderr) and run again. Anything else is
 (re)submitted: an interrupted run resumes from its checkpoint (``run_SSSS.h5.ckpt`` beside the
 ``.part`` file) and ends
 bit-identical to an uninterrupted run (``runner``/``store``); a failed run is retried. A failure
 is recorded and the other runs go on; ``run_ensemble`` returns the manifest and the command exits
 with status 1 if any run failed. An existing ``DIR`` whose manifest (or any ``run_*.h5``) belongs to
 another configuration is refused with ``ConfigError`` before anything is written, as is bad input
-(no seeds, a negative seed, ``workers < 1``). Two invocations on one ``DIR`` at once are refused too
+(no seeds, a negative seed or one past 2**63 - 1, ``workers < 1``). Two invocations on one ``DIR`` at once are refused too
 (``DIR/.ensemble.lock``, an advisory ``flock`` released when the process dies).
 
 numba in workers. The kernels are compiled with ``cache=True`` (``sim/jit.py``) and without
@@ -112,7 +114,9 @@ def _check_seeds(seeds) -> list[int]:
             raise ConfigError(f"seed {s!r} is not an integer") from None
         if v < 0:
             raise ConfigError(f"seed {v} is negative: seeds are non-negative integers (--first-seed >= 0)")
-        out.append(int(v))
+        from tiltpile.config import check_seed
+
+        out.append(check_seed(v))
     if len(set(out)) != len(out):
         raise ConfigError("seeds repeat: each seed is one run")
     return out
@@ -130,13 +134,31 @@ def read_manifest(out_dir: str | Path) -> dict | None:
                           "move it away to start afresh") from None
     if not isinstance(m, dict) or m.get("format") != FORMAT or "config_hash" not in m:
         raise ConfigError(f"{path}: not a tiltpile ensemble manifest; move it away to start afresh")
+    for key, kind in (("runs", dict), ("seeds", list), ("invocations", list)):
+        if not isinstance(m.get(key), kind):
+            raise ConfigError(f"{path}: damaged ensemble manifest (\"{key}\" is "
+                              f"{'missing' if key not in m else repr(m[key])[:40]}, expected a "
+                              f"{'table' if kind is dict else 'list'}); move it away to start afresh")
+    if not all(isinstance(r, dict) and r.get("status") in STATUSES for r in m["runs"].values()):
+        raise ConfigError(f"{path}: damaged ensemble manifest (a run without a valid status); "
+                          "move it away to start afresh")
     return m
 
 
-def _check_dir(config: Config, out_dir: Path) -> dict | None:
-    """Refuse a directory holding another configuration's ensemble; return its manifest if any."""
+def _check_dir(config: Config, out_dir: Path, damaged: dict | None = None,
+               seeds=()) -> dict | None:
+    """Refuse a directory holding another configuration's ensemble; return its manifest if any.
+
+    The run files of ``seeds`` are verified completely (``store.verify``); those that fail go
+    into ``damaged`` (path -> first problem) instead of being refused."""
     if out_dir.exists() and not out_dir.is_dir():
         raise ConfigError(f"--out {out_dir} exists and is not a directory")
+    if not out_dir.exists():
+        from tiltpile.paths import check_output
+
+        check_output(out_dir, "--out", directory=True)
+    elif not os.access(out_dir, os.W_OK | os.X_OK):
+        raise ConfigError(f"--out {out_dir} is not writable")
     manifest = read_manifest(out_dir) if out_dir.is_dir() else None
     h = config.hash()
     if manifest is not None and manifest["config_hash"] != h:
@@ -145,14 +167,22 @@ def _check_dir(config: Config, out_dir: Path) -> dict | None:
             f"this one {h[:12]}): use another --out directory, or the configuration in "
             f"{out_dir / MANIFEST}; nothing was changed")
     if out_dir.is_dir():
-        from tiltpile.store import RunFileError, open_run
+        from tiltpile.store import RunFileError, open_run, verify
 
+        mine = {run_file(out_dir, s).name for s in seeds}
         for path in sorted(out_dir.glob("run_*.h5")):
             try:
                 with open_run(path) as run:
                     other = run.config_hash
             except RunFileError as e:
+                if damaged is not None and path.name in mine:
+                    damaged[path] = str(e)
+                    continue
                 raise ConfigError(f"{e}; move it away to run an ensemble in {out_dir}") from None
+            if other == h and damaged is not None and path.name in mine:
+                problems = verify(path)
+                if problems:
+                    damaged[path] = f"{path}: {problems[0]}"
             if other != h:
                 raise ConfigError(f"{path} is a run of another configuration (hash {other[:12]}, this one "
                                   f"{h[:12]}): use another --out directory; nothing was changed")
@@ -190,15 +220,23 @@ class _Manifest:
         return self.data["runs"][str(seed)]
 
     def save(self) -> None:
+        """Write the manifest atomically; a failed write (a full disk) leaves the previous
+        manifest and no temporary file, and raises ``store.RunWriteError`` (one line)."""
         with self.lock:
             self.data["updated"] = _now()
             text = json.dumps(self.data, indent=1, sort_keys=False)
             tmp = self.path.with_name(self.path.name + ".tmp")
-            with open(tmp, "w") as f:
-                f.write(text + "\n")
-                f.flush()
-                os.fsync(f.fileno())
-            os.replace(tmp, self.path)
+            try:
+                with open(tmp, "w") as f:
+                    f.write(text + "\n")
+                    f.flush()
+                    os.fsync(f.fileno())
+                os.replace(tmp, self.path)
+            except OSError as e:
+                from tiltpile.store import write_error
+
+                tmp.unlink(missing_ok=True)
+                raise write_error(e, self.path) from None
 
 
 def _merge_manifest(old: dict | None, config: Config, seeds: list[int], out_dir: Path) -> dict:
@@ -207,8 +245,11 @@ def _merge_manifest(old: dict | None, config: Config, seeds: list[int], out_dir:
     m["tiltpile_version"] = tiltpile.__version__
     m["versions"] = _versions()
     m["seeds"] = sorted(set(m["seeds"]) | set(seeds))
+    from tiltpile.store import remove_stale_checkpoint
+
     for s in seeds:
         r = m["runs"].setdefault(str(s), _new_run(s))
+        remove_stale_checkpoint(run_file(out_dir, s))  # a kill between the rename and its removal
         if run_file(out_dir, s).exists():
             r["status"] = "done"
         elif r["status"] != "pending":  # running (interrupted) or failed: try again
@@ -257,6 +298,7 @@ def _cache_misses() -> int:
 def _run_one(config: Config, seed: int, path: str, topic: str) -> dict:
     """One run on a worker: announce the start, simulate (resuming), return the summary."""
     from tiltpile.runner import simulate
+    from tiltpile.store import RunExistsError
 
     started = _now()
     try:
@@ -273,7 +315,12 @@ def _run_one(config: Config, seed: int, path: str, topic: str) -> dict:
         return {"seed": seed, "path": path, "started": started, "finished": _now(), "worker": address,
                 "seconds": 0.0, "skipped": True}
     on_progress = _progress_sender(log, topic, seed) if log is not None else None
-    summary = simulate(config, seed, path, progress=False, resume=True, on_progress=on_progress)
+    try:
+        summary = simulate(config, seed, path, progress=False, resume=True, on_progress=on_progress,
+                           overwrite=False)
+    except RunExistsError:  # finished by another process while this task waited
+        return {"seed": seed, "path": path, "started": started, "finished": _now(), "worker": address,
+                "seconds": 0.0, "skipped": True}
     summary.update(started=started, finished=_now(), worker=address, numba_cache_misses=_cache_misses())
     return summary
 
@@ -346,8 +393,9 @@ def run_ensemble(config: Config, seeds, out_dir: str | Path, *, scheduler=None, 
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise ConfigError(f"--workers must be a positive integer, got {workers!r}")
     out_dir = Path(out_dir)
-    old = _check_dir(config, out_dir)
-    todo = [s for s in seeds if not run_file(out_dir, s).exists()]
+    damaged: dict = {}
+    old = _check_dir(config, out_dir, damaged, seeds)
+    todo = [s for s in seeds if not run_file(out_dir, s).exists() or run_file(out_dir, s) in damaged]
     recorded = old is not None and all(old["runs"].get(str(s), {}).get("status") == "done" for s in seeds)
     if not todo and recorded:
         _report(old, seeds, progress, out_dir)
@@ -360,7 +408,9 @@ def run_ensemble(config: Config, seeds, out_dir: str | Path, *, scheduler=None, 
             client, engine = stack.enter_context(_client(scheduler, workers, len(todo)))
         out_dir.mkdir(parents=True, exist_ok=True)
         stack.enter_context(_dir_lock(out_dir))
-        old = _check_dir(config, out_dir)  # again, now that we hold the lock
+        damaged = {}
+        old = _check_dir(config, out_dir, damaged, seeds)  # again, now that we hold the lock
+        _move_aside(damaged)
         man = _Manifest(out_dir / MANIFEST, _merge_manifest(old, config, seeds, out_dir))
         todo = [s for s in seeds if man.run(s)["status"] != "done"]
         invocation = {"started": started, "engine": engine, "seeds": todo}
@@ -376,6 +426,16 @@ def run_ensemble(config: Config, seeds, out_dir: str | Path, *, scheduler=None, 
             man.save()
     _report(man.data, seeds, progress, out_dir)
     return man.data
+
+
+def _move_aside(damaged: dict) -> None:
+    """Move run files that failed verification to ``NAME.damaged`` (kept for inspection), saying so;
+    their seeds are then run again."""
+    for path, problem in sorted(damaged.items()):
+        target = path.with_name(path.name + ".damaged")
+        os.replace(path, target)
+        print(f"tiltpile ensemble: {problem}: moved to {target.name}, running its seed again",
+              file=sys.stderr)
 
 
 def _execute(client, config: Config, todo: list[int], out_dir: Path, man: _Manifest, progress: bool,
