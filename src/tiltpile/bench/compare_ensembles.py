@@ -5,9 +5,11 @@ Usage: python -m tiltpile.bench.compare_ensembles DIR [DIR ...]
   DIR  an ensemble directory (``tiltpile ensemble ... --out DIR``); its observables are computed
        if missing (``tiltpile observables``). The first DIR is the reference.
 
-Per ensemble: the configuration keys that differ from the reference's; the runs; three numbers
-per run: the first onset theta_m (Fig. 2's definition, :func:`tiltpile.analysis.ensemble_data.first_onsets`)
-and the mean coordination z and mobilized fraction n_m over the run's quiet frames; their mean
+Per ensemble: the configuration keys that differ from the reference's; the runs; five numbers
+per run: the first onset theta_m (Fig. 2's definition, :func:`tiltpile.analysis.ensemble_data.first_onsets`),
+the mean coordination z and mobilized fraction n_m over the run's quiet frames, the fraction of
+its quiet frames below the marginal line (z < 3 + n_m; Fig. 1) and the cluster-size exponent
+delta of its quiet clusters just before its onsets (Fig. 5's pooled fit, one run at a time); their mean
 over the runs with its standard error, and the difference from the reference's with Welch's
 t-test (two-sided p); and the fraction of avalanching frames. Different
 settings usually deposit different piles, so the comparison is between ensembles, not run by
@@ -35,7 +37,30 @@ def config_diff(ref: dict, cfg: dict, prefix: str = "") -> dict:
     return out
 
 
-METRICS = ("theta_m", "z_quiet", "n_m_quiet")
+METRICS = ("theta_m", "z_quiet", "n_m_quiet", "below_quiet", "delta")
+DELTA_POOL = (-1.0, 0.0)  # theta - theta_m window of the clusters delta is fitted to (Fig. 5's)
+
+
+def _run_delta(clusters, seeds, s_min: int = 2, min_samples: int = 50) -> np.ndarray:
+    """Per run, delta of the quiet clusters with theta - theta_m in ``DELTA_POOL`` (Fig. 5's pooled
+    fit, one run at a time; NaN where the fit is refused)."""
+    import warnings
+
+    from tiltpile.analysis.stats import InsufficientDataError, fit_power_law_cutoff
+
+    cl = clusters[~clusters["avalanching"].to_numpy(bool)]
+    t = cl["theta_to_onset"].to_numpy(float)
+    cl = cl[(t >= DELTA_POOL[0] - 1e-9) & (t < DELTA_POOL[1] - 1e-9)]
+    out = []
+    for s in seeds:
+        sizes = cl.loc[cl["run"] == s, "size"].to_numpy()
+        try:
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                out.append(fit_power_law_cutoff(sizes, s_min=s_min, min_samples=min_samples).delta)
+        except InsufficientDataError:
+            out.append(np.nan)
+    return np.array(out, float)
 
 
 def summarize(ens) -> dict:
@@ -46,9 +71,13 @@ def summarize(ens) -> dict:
     f = ens.frames
     av = f["avalanching"].to_numpy(bool)
     quiet = f[~av].groupby("run")[["z", "n_m"]].mean()
+    q = f[~av]
+    below = (q["z"] - 3.0 - q["n_m"] < 0).groupby(q["run"]).mean()
     per_run = {"theta_m": first_onsets(f, ens.seeds),
                "z_quiet": np.array([quiet["z"].get(s, np.nan) for s in ens.seeds], float),
-               "n_m_quiet": np.array([quiet["n_m"].get(s, np.nan) for s in ens.seeds], float)}
+               "n_m_quiet": np.array([quiet["n_m"].get(s, np.nan) for s in ens.seeds], float),
+               "below_quiet": np.array([below.get(s, np.nan) for s in ens.seeds], float),
+               "delta": _run_delta(ens.clusters, ens.seeds)}
     out = dict(config=ens.config, seeds=list(ens.seeds),
                avalanching_fraction=float(av.mean()) if av.size else np.nan)
     for name, x in per_run.items():
@@ -104,7 +133,8 @@ def main(argv=None) -> list[dict]:
         print(f"{r['dir']}: {diff}")
         print(f"  runs {len(r['seeds'])} (seeds {r['seeds']}), onsets {r['n_onset']}: theta_m {th}; "
               f"avalanching {r['avalanching_fraction']:.3f} of the frames")
-        for m, unit, fmt in (("theta_m", " deg", ".2f"), ("z_quiet", "", ".4f"), ("n_m_quiet", "", ".4f")):
+        for m, unit, fmt in (("theta_m", " deg", ".2f"), ("z_quiet", "", ".4f"), ("n_m_quiet", "", ".4f"),
+                             ("below_quiet", "", ".4f"), ("delta", "", ".3f")):
             print(f"  {m:9s} {r[m + '_mean']:{fmt}} +- {r[m + '_sem']:{fmt}}{unit}   shift "
                   f"{r[m + '_shift']:+{fmt}}, Welch p {r[m + '_p']:.2f}", flush=True)
     return rows
