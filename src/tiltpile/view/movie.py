@@ -137,18 +137,20 @@ class PileArtist:
             fig.legend(handles, labels, loc="upper left", ncol=len(handles), fontsize=8,
                        frameon=False, bbox_to_anchor=(0.0, 1.0 - 0.26 / h_in),
                        handletextpad=0.3, columnspacing=1.2, borderaxespad=0.0)
-        self._n_mobile = None
+        self._sized = None
 
     def draw(self, f: dict) -> None:
         """Update every artist to the frame ``f`` (:meth:`FrameFields.fields`)."""
         pal = self.pal
         fixed = f["fixed"]
         n = fixed.size
-        d = 2.0 * f["radius"]
         g = self.grains
-        g._widths = 0.5 * d               # EllipseCollection keeps half-axes; set once per frame
-        g._heights = 0.5 * d
-        g._angles = np.zeros(n)
+        if self._sized is not f["radius"]:           # the radii are the run's: set them once
+            d = 2.0 * f["radius"]
+            g.set_widths(d)
+            g.set_heights(d)
+            g.set_angles(np.zeros(n))
+            self._sized = f["radius"]
         g.set_offsets(f["position"])
         if self.color == "speed":
             v = f["velocity"]
