@@ -298,7 +298,8 @@ def _cache_misses() -> int:
 def _run_one(config: Config, seed: int, path: str, topic: str) -> dict:
     """One run on a worker: announce the start, simulate (resuming), return the summary."""
     from tiltpile.runner import simulate
-    from tiltpile.store import RunExistsError
+    from tiltpile.sim.protocol import SimulationError
+    from tiltpile.store import RunExistsError, RunFileError
 
     started = _now()
     try:
@@ -321,6 +322,12 @@ def _run_one(config: Config, seed: int, path: str, topic: str) -> dict:
     except RunExistsError:  # finished by another process while this task waited
         return {"seed": seed, "path": path, "started": started, "finished": _now(), "worker": address,
                 "seconds": 0.0, "skipped": True}
+    except (RunFileError, SimulationError) as e:
+        # an expected failure (a full disk, a busy file, a health stop): returned, not raised, so the
+        # worker does not log it as a crash with its traceback; the manifest records it as failed
+        return {"seed": seed, "failed": True, "error": f"{type(e).__name__}: {e}",
+                "traceback": traceback.format_exc(), "started": started, "finished": _now(),
+                "worker": address}
     summary.update(started=started, finished=_now(), worker=address, numba_cache_misses=_cache_misses())
     return summary
 
@@ -524,6 +531,10 @@ def _record(r: dict, fut) -> None:
         summary = fut.result()
         if r["status"] == "pending":  # its start event was not seen
             r["attempts"] += 1
+        if summary.get("failed"):
+            r.update(status="failed", error=summary["error"], traceback=summary["traceback"],
+                     finished=summary["finished"], worker=summary.get("worker"))
+            return
         r.update(status="done", error=None, traceback=None,
                  **{k: v for k, v in summary.items() if k not in ("path", "seed")})
         if r.get("seconds") is not None:

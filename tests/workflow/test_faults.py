@@ -501,3 +501,29 @@ def test_manifest_without_a_runs_table_is_one_line(tmp_path, tiny, capsys, runs)
     assert rc == 2
     _one_error_line(lines, "ensemble.json", '"runs"')
     assert sorted(p.name for p in d.iterdir()) == ["ensemble.json"]
+
+
+@pytest.mark.skipif(not _can_mount(), reason="mounting a tmpfs needs root")
+def test_ensemble_on_a_full_disk_is_one_line_per_run_and_resumes(tmp_path, ref):
+    """`ensemble` printed 181 tracebacks and left an empty ensemble.json.tmp on a full disk."""
+    mnt = tmp_path / "mnt"
+    mnt.mkdir()
+    size = store.RESERVE_BYTES // 1024 + 600
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}k", "tmpfs", str(mnt)]).returncode:
+        pytest.skip("cannot mount a tmpfs here")
+    try:
+        d = mnt / "ens"
+        cmd = [sys.executable, "-m", "tiltpile", "ensemble", *SETS, "--runs", "1", "--first-seed", "3",
+               "--out", str(d), "--workers", "1"]
+        p = subprocess.run(cmd, capture_output=True, text=True, env=ENV, timeout=300)
+        assert p.returncode == 1, p.stderr
+        assert "Traceback" not in p.stderr and "Compute Failed" not in p.stderr, p.stderr
+        failed = [ln for ln in p.stderr.splitlines() if "FAILED" in ln]
+        assert len(failed) == 1 and "no space left on device while writing" in failed[0]
+        assert not list(d.glob("*.tmp*"))
+        subprocess.run(["mount", "-o", "remount,size=64m", str(mnt)], check=True)
+        p = subprocess.run([*cmd, "--quiet"], capture_output=True, text=True, env=ENV, timeout=300)
+        assert p.returncode == 0, p.stderr
+        assert_same_run(d / "run_0003.h5", ref)
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)])
