@@ -364,9 +364,13 @@ def _write_cache(cache: Path, meta: dict, frames: pd.DataFrame, clusters: pd.Dat
         for c in df.columns:
             arrays[f"{prefix}__{c}"] = df[c].to_numpy()
     tmp = cache.with_name(f".{cache.name}.{os.getpid()}.tmp")
-    with open(tmp, "wb") as fh:
-        np.savez_compressed(fh, **arrays)
-    os.replace(tmp, cache)
+    try:
+        with open(tmp, "wb") as fh:
+            np.savez_compressed(fh, **arrays)
+        os.replace(tmp, cache)
+    except BaseException:  # a full disk, a kill: no half-written temporary stays behind
+        tmp.unlink(missing_ok=True)
+        raise
 
 
 def _read_cache(cache: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -412,7 +416,12 @@ def compute_observables(ensemble_dir, workers: int | None = None, progress: bool
     "computed"), seconds.
     """
     p = _params(params)
+    if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
+        raise ValueError(f"workers must be a positive integer or None, got {workers!r}")
     files = run_files(ensemble_dir)
+    if files:  # one configuration per directory (store.MixedConfigError names the odd files)
+        from tiltpile.store import common_config
+        common_config(files)
     pending = [f for f in files if force or not _is_fresh(f, p)]
     status = {str(f): ("cached", 0.0) for f in files}
     if pending:
