@@ -527,3 +527,33 @@ def test_ensemble_on_a_full_disk_is_one_line_per_run_and_resumes(tmp_path, ref):
         assert_same_run(d / "run_0003.h5", ref)
     finally:
         subprocess.run(["umount", "-l", str(mnt)])
+
+
+def test_observables_on_a_full_disk_is_one_line_and_leaves_no_temporary(tmp_path, ref, monkeypatch, capsys):
+    from tiltpile.analysis import observables as obs
+
+    shutil.copy(ref, tmp_path / "run_0003.h5")
+
+    def full(fh, **arrays):
+        fh.write(b"partial")
+        raise OSError(errno.ENOSPC, "No space left on device")
+
+    monkeypatch.setattr(obs.np, "savez_compressed", full)
+    rc, lines = _cli(capsys, "observables", tmp_path, "--workers", "1", "--quiet")
+    assert rc == 1
+    _one_error_line(lines, "no space left on device")
+    assert list((tmp_path / "observables").iterdir()) == []
+
+
+def test_compute_observables_refuses_mixed_configurations_and_bad_workers(tmp_path, ref):
+    from tiltpile.analysis import compute_observables
+
+    shutil.copy(ref, tmp_path / "run_0003.h5")
+    with pytest.raises(ValueError, match="workers"):
+        compute_observables(tmp_path, workers=0, progress=False)
+    other = config.load("smoke", overrides=[*TINY[:2], "protocol.theta_max_deg=1.0"])
+    simulate(other, 4, tmp_path / "run_0004.h5", progress=False)
+    shutil.copy(ref, tmp_path / "run_0005.h5")
+    with pytest.raises(store.MixedConfigError, match="run_0004.h5 is a run of another configuration"):
+        compute_observables(tmp_path, workers=1, progress=False)
+    assert not (tmp_path / "observables").exists()

@@ -68,7 +68,17 @@ def _exit_if_hdf5_is_broken(status: int) -> None:
 
 def main(argv: list[str] | None = None) -> int:
     args = build_parser().parse_args(argv)
+    import warnings
+
+    saved = warnings.formatwarning
     _one_line_warnings(args.command)
+    try:
+        return _run(args)
+    finally:
+        warnings.formatwarning = saved
+
+
+def _run(args) -> int:
     from tiltpile.sim.protocol import SimulationError
     from tiltpile.store import MixedConfigError, RunBusyError, RunExistsError, RunFileError
 
