@@ -65,13 +65,15 @@ def test_fig4_cluster_positions_relative_to_marginal_line():
     assert numbers["z_rest_mean_avalanche"] == pytest.approx(3.0)
     assert numbers["z_rest_frac_below_iso_quiet"] == pytest.approx(1 / 3)
     assert numbers["frac_outside_range_quiet"] == 0.0
-    # the common rational values sit at bin centres and the density integrates to one
+    # each cluster of s grains is spread over its lattice cell, 1/s in z by 1/(2s) in n_m: the
+    # five quiet pairs at n_m = 0.5 have cells [0.375, 0.625], of which 0.6 lies inside the
+    # n_m range [0.475, 1.025]; the pair at n_m = 0.75 lies inside: the density holds 4/6
     xe, ye = d["xedges"], d["yedges"]
     assert np.allclose(0.5 * (xe[:-1] + xe[1:])[[0, -1]], [1.5, 5.0])
     h = d["density"]["quiet"]
-    assert (h * np.outer(np.diff(xe), np.diff(ye))).sum() == pytest.approx(1.0)
+    assert (h * np.outer(np.diff(xe), np.diff(ye))).sum() == pytest.approx(4 / 6)
     i, j = np.searchsorted(xe, 3.0) - 1, np.searchsorted(ye, 0.5) - 1
-    assert h[i, j] == h.max()                       # two of six clusters at (3, 0.5)
+    assert h[i, j] == pytest.approx(h.max())        # two of six clusters at (3, 0.5)
 
 
 def test_fig4_without_avalanches_gives_nan():
@@ -212,3 +214,4 @@ def test_fig6_no_clusters():
     numbers, d = fig6.compute(ensemble(fr, empty))
     assert numbers["n_clusters"] == 0 and all(v["n"] == 0 for v in numbers["classes"].values())
     assert np.isnan(numbers["frac_below_single_grain"])
+

@@ -5,10 +5,13 @@ isostaticity diagram, before the avalanche in black, and during the avalanche in
 straddle the marginal stability line during the quiet period. The z-distribution of the remainder
 of the system is shown below - note that since n_m = 0 for this subset, we have z_iso = 3."
 
-Top: density (:func:`tiltpile.analysis.stats.density_2d`) of the per-cluster (z, n_m) of the
-clusters table, quiet frames (grey scale) and avalanching frames (red contours), with the marginal
-line z = z_iso^gen = (d + 1) + 2 n_m / d (2D: z = 3 + n_m). Axes as the paper's Fig. 2d: z across,
-n_m up. Each cluster is one sample (whatever its size).
+Top: density of the per-cluster (z, n_m) of the clusters table, quiet frames (grey scale, a) and
+avalanching frames (red, b), each with a colour bar (probability per unit z per unit n_m, log
+scale), with the marginal line z = z_iso^gen = (d + 1) + 2 n_m / d (2D: z = 3 + n_m). Axes as the
+paper's Fig. 2d: z across, n_m up. Each cluster is one sample (whatever its size). A cluster of s
+grains has z in steps of 1/s and n_m in steps of 1/(2s); a plain histogram of values on these many
+lattices shows comb stripes where they beat against the bins, so each cluster is spread over its
+own lattice cell (:func:`tiltpile.analysis.stats.cell_density_2d`).
 Bottom: density of ``z_rest`` (frames table: bulk non-rattlers in no cluster, so n_m = 0 and
 z_iso = 3), quiet versus avalanching frames.
 
@@ -22,7 +25,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from tiltpile.analysis import InsufficientDataError, density_2d, dz_gen
+from tiltpile.analysis import InsufficientDataError, dz_gen
+from tiltpile.analysis.stats import cell_density_2d
 
 from . import style
 
@@ -82,7 +86,8 @@ def compute(ens, z_range=(1.5, 5.0), nm_range=(0.5, 1.0), z_bin: float = 0.1,
         for k, v in _summary(g).items():
             numbers[f"{name}_{k}"] = v
         try:
-            h, _, _ = density_2d(g["z"], g["n_m"], bins=(xe, ye))
+            size = g["size"].to_numpy(float)
+            h, _ = cell_density_2d(g["z"], g["n_m"], 1.0 / size, 0.5 / size, xe, ye)
             dens[name] = h
         except InsufficientDataError:
             dens[name] = None
@@ -116,7 +121,7 @@ def compute(ens, z_range=(1.5, 5.0), nm_range=(0.5, 1.0), z_bin: float = 0.1,
 def plot(data: dict, numbers: dict):
     """Top: (z, n_m) densities of quiet / avalanching clusters with the marginal line; bottom: z_rest."""
     from matplotlib.colors import LinearSegmentedColormap, LogNorm
-    fig, axes = style.figure(2, 2, height=3.9, sharex="row", sharey="row",
+    fig, axes = style.figure(2, 2, height=4.4, sharex="row", sharey="row",
                              gridspec_kw={"height_ratios": [2.0, 1.0]})
     gs = axes[1, 0].get_gridspec()
     for a in axes[1]:
@@ -130,9 +135,14 @@ def plot(data: dict, numbers: dict):
         cmap = LinearSegmentedColormap.from_list(key, ["#F7F7F7", style.COLORS[key]])
         if h is not None and np.any(h > 0):
             pos = h[h > 0]
-            ax.pcolormesh(xe, ye, np.ma.masked_less_equal(h, 0.0).T, cmap=cmap, shading="flat",
-                          rasterized=True,
-                          norm=LogNorm(vmin=max(pos.min(), pos.max() * 1e-4), vmax=pos.max()))
+            mesh = ax.pcolormesh(xe, ye, np.ma.masked_less_equal(h, 0.0).T, cmap=cmap,
+                                 shading="flat", rasterized=True,
+                                 norm=LogNorm(vmin=max(pos.min(), pos.max() * 1e-4),
+                                              vmax=pos.max()))
+            cb = fig.colorbar(mesh, ax=ax, orientation="horizontal", location="bottom",
+                              pad=0.28, fraction=0.06, aspect=25)
+            cb.set_label(r"density per unit $z$ per unit $n_m$", fontsize=5.5)
+            cb.ax.tick_params(labelsize=5, length=2)
         else:
             ax.text(0.5, 0.5, "no clusters", transform=ax.transAxes, ha="center", va="center")
         ax.plot(Z_ISO_MU + 2.0 * nm / D, nm, color=style.COLORS["marginal"], lw=1.2,
@@ -147,8 +157,6 @@ def plot(data: dict, numbers: dict):
                       f"{100 * numbers[f'{key}_frac_on']:.0f}% on the line")
         ax.set_title(title, fontsize=6.5, color=style.COLORS[key])
         style.panel_label(ax, letter)
-    axes[0, 0].text(0.97, 0.97, "log density", transform=axes[0, 0].transAxes, ha="right",
-                    va="top", fontsize=5.5)
     axes[0, 0].set_ylabel(r"cluster $n_m$")
     axes[0, 1].legend(loc="upper right", handlelength=1.2)
 
