@@ -215,3 +215,36 @@ def test_fig6_no_clusters():
     assert numbers["n_clusters"] == 0 and all(v["n"] == 0 for v in numbers["classes"].values())
     assert np.isnan(numbers["frac_below_single_grain"])
 
+
+def test_fig6_leaves_out_clusters_with_a_locally_unstable_grain():
+    ens = _fig6_ensemble()
+    cl = ens.clusters.copy()
+    # a quiet single grain with one sliding contact (z = 1, n_m = 1/2: delta z = -2.5), moving
+    bad = cl.iloc[[0]].assign(z=1.0, n_m=0.5)
+    cl = pd.concat([cl, bad], ignore_index=True)
+    cl["n_unstable"] = 0
+    cl.loc[cl.index[-1], "n_unstable"] = 1
+    cl["speed_max"] = 1e-5
+    cl.loc[cl.index[-1], "speed_max"] = 0.03
+    ens = data.Ensemble(ens.data_dir, ens.frames, cl, {}, ens.seeds, ens.meta)
+    numbers, _ = fig6.compute(ens, min_samples=1)
+    assert numbers["n_clusters_before_stability"] == 17 and numbers["n_clusters_unstable"] == 1
+    assert numbers["frac_below_single_grain_before_stability"] == pytest.approx(1 / 17)
+    assert numbers["speed_max_median_unstable"] == pytest.approx(0.03)
+    assert numbers["speed_max_median_stable"] == pytest.approx(1e-5)
+    assert numbers["n_clusters"] == 16 and numbers["frac_below_single_grain"] == 0.0
+    assert numbers["dz_min_all"] == pytest.approx(-1.5)
+    assert list(numbers["classes"]) == ["1", "2-3", "4-7", "8-15", "16+"]
+    kept, _ = fig6.compute(ens, min_samples=1, stable_only=False)
+    assert kept["n_clusters"] == 17 and kept["dz_min_all"] == pytest.approx(-2.5)
+
+
+def test_dz_distribution_of_several_sizes_spreads_over_cells():
+    cl = pd.DataFrame({"size": [2, 3, 3], "dz": [0.0, 0.0, 1 / 6]})
+    d = stats.dz_distribution(cl, 2, 4)                 # bins of 1/4 centred on multiples of 1/4
+    w = 0.25
+    assert (d["density"] * w).sum() == pytest.approx(1.0)
+    assert d["count"].sum() == pytest.approx(3.0)
+    # bin [-1/8, 1/8): the size-2 cluster and the size-3 cell [-1/12, 1/12] whole, and a quarter
+    # of the cell [1/12, 1/4] of the cluster at 1/6
+    assert float(d.loc[np.isclose(d["center"], 0.0), "count"].iloc[0]) == pytest.approx(2.25)

@@ -26,6 +26,21 @@ this module uses. Then
   particle". In the units above: delta z >= (d + 1) / 2 - (d + 1) = -(d + 1) / 2 = -1.5 in 2D
   (dashed). A single critical grain (n_m = 1/2) with z = 2 contacts sits exactly on it.
 
+Which clusters
+--------------
+The paper: "all studied clusters must be composed of locally stable particles". A grain of a
+cluster is locally stable when z_i - m_i / 2 >= 3/2; a cluster of such grains has
+z - n_m = mean(z_i - m_i / 2) >= 3/2, i.e. delta z >= -1.5, whatever its size. In our piles about
+1% of the grains of the clusters fail the criterion: grains with a single contact (z_i = 1, a
+sliding contact) or with two contacts that both slide (z_i = 2, m_i = 2). They are grains in
+motion, not rattlers caught at rest: their median speed is two to three orders of magnitude above
+that of the other cluster grains (``speed_max`` of their clusters, reported below), and about a
+third sit in the surface layer; almost none touch a wall or a fixed grain, so no counting
+convention for those contacts is involved. A rigid grain with those contacts cannot be in
+equilibrium, so a cluster holding one is not a static cluster; with ``stable_only`` (default)
+such clusters (column ``n_unstable`` > 0 of the clusters table) are left out, and how many were
+left out is reported. ``docs/figures.md`` gives the numbers of the default ensemble.
+
 Only the clusters of quiet frames are used unless ``quiet_only=False``.
 Library: :func:`tiltpile.analysis.stats.dz_distribution` (top),
 :func:`tiltpile.analysis.stats.dz_by_size` (bottom, classes and log-spaced size bins).
@@ -64,22 +79,33 @@ def _slope(x, y) -> float:
     return float(np.polyfit(x[ok], y[ok], 1)[0])
 
 
-def compute(ens, size_classes=(1, 2, 3, 5, 10), bins_per_decade: int = 5,
-            quiet_only: bool = True, min_samples: int = 10):
+def compute(ens, size_classes=(1, 2, 4, 8, 16), bins_per_decade: int = 5,
+            quiet_only: bool = True, stable_only: bool = True, min_samples: int = 10):
     """delta z (from the generalized isostaticity line) of clusters by size.
 
     ens: :class:`tiltpile.figures.data.Ensemble`. size_classes: increasing lower bounds of the
-    size classes of the top panel, the last one open-ended ((1, 2, 3, 5, 10): 1, 2, 3-4, 5-9,
-    10+); bins_per_decade: log-spaced size bins of the bottom panel; quiet_only: clusters of quiet
-    frames only; min_samples: fewest clusters for a log bin to enter the trend numbers.
+    size classes of the top panel, the last one open-ended ((1, 2, 4, 8, 16): 1, 2-3, 4-7, 8-15,
+    16+: after size 1, each class holds as many odd as even sizes); bins_per_decade: size bins of
+    the bottom panel (:func:`tiltpile.analysis.stats.parity_log_edges`); quiet_only: clusters of
+    quiet frames only; stable_only: leave out the clusters holding a locally unstable grain
+    (module docstring; needs the clusters column ``n_unstable``, else nothing is left out);
+    min_samples: fewest clusters for a size bin to enter the trend numbers.
 
     numbers:
       classes: per class label: n, dz_mean, dz_min, dz_std (NaN when empty);
       dz_global, dz_single_grain: the two criteria (0 and -1.5);
-      frac_below_single_grain: fraction of the clusters with delta z below the single-grain bound;
+      n_clusters: clusters used; stable_only;
+      n_clusters_before_stability, n_clusters_unstable, frac_clusters_unstable: the clusters
+        (quiet if quiet_only) before the selection, those holding an unstable grain, their share
+        (NaN without the n_unstable column);
+      frac_below_single_grain_before_stability: their share below the single-grain bound;
+      speed_max_median_unstable, speed_max_median_stable: median over clusters of the fastest
+        grain's speed (sqrt(g d)), clusters with / without an unstable grain;
+      frac_below_single_grain: fraction of the clusters used with delta z below the bound;
+      dz_min_all: the smallest delta z of the clusters used;
       frac_single_on_bound: fraction of size-1 clusters exactly on it;
-      slope_per_decade: least-squares slope of <delta z> versus log10(size) over the log bins with
-        >= min_samples clusters (> 0: larger clusters are closer to / above the global line);
+      slope_per_decade: least-squares slope of <delta z> versus log10(size) over the size bins
+        with >= min_samples clusters (> 0: larger clusters are closer to / above the global line);
       s_cross: lower edge of the first such bin with <delta z> >= 0 (the size from which clusters
         are on average globally stable; NaN if none);
       largest_bin: the last such bin's size_lo, n, dz_mean, dz_min.
@@ -88,6 +114,23 @@ def compute(ens, size_classes=(1, 2, 3, 5, 10), bins_per_decade: int = 5,
     if quiet_only:
         cl = cl[~cl["avalanching"].to_numpy(bool)]
     cl = cl.assign(dz=dz_gen(cl["z"].to_numpy(float), cl["n_m"].to_numpy(float), D))
+    has_u = "n_unstable" in cl
+    unstable = cl["n_unstable"].to_numpy() > 0 if has_u else np.zeros(len(cl), bool)
+    before = {
+        "n_clusters_before_stability": int(len(cl)),
+        "n_clusters_unstable": int(unstable.sum()) if has_u else None,
+        "frac_clusters_unstable": float(unstable.mean()) if has_u and len(cl) else np.nan,
+        "frac_below_single_grain_before_stability": (
+            float(np.mean(cl["dz"] < DZ_SINGLE_GRAIN - TOL)) if len(cl) else np.nan),
+        "speed_max_median_unstable": (float(cl.loc[unstable, "speed_max"].median())
+                                      if has_u and unstable.any() and "speed_max" in cl
+                                      else np.nan),
+        "speed_max_median_stable": (float(cl.loc[~unstable, "speed_max"].median())
+                                    if has_u and (~unstable).any() and "speed_max" in cl
+                                    else np.nan),
+    }
+    if stable_only:
+        cl = cl[~unstable]
     s_max = int(cl["size"].max()) if len(cl) else 1
     lows = [int(v) for v in size_classes]
     if any(b <= a for a, b in zip(lows[:-1], lows[1:])):
@@ -100,7 +143,7 @@ def compute(ens, size_classes=(1, 2, 3, 5, 10), bins_per_decade: int = 5,
     by_class["n"] = by_class["n"].fillna(0).astype(int)
     dists = [dz_distribution(cl, a, b) for a, b in zip(lows, highs)]
 
-    bins = dz_by_size(cl, _st.log_int_edges(s_max, bins_per_decade)) if len(cl) else \
+    bins = dz_by_size(cl, _st.parity_log_edges(s_max, bins_per_decade)) if len(cl) else \
         pd.DataFrame(columns=["size_lo", "size_hi", "n", "dz_mean", "dz_min", "dz_std"])
     bins = bins.astype({"size_lo": float, "size_hi": float})
     bins["center"] = np.sqrt(bins["size_lo"] * (bins["size_hi"] - 1.0))
@@ -113,8 +156,10 @@ def compute(ens, size_classes=(1, 2, 3, 5, 10), bins_per_decade: int = 5,
                               "dz_std": r.dz_std} for r in by_class.itertuples()},
         "dz_global": DZ_GLOBAL, "dz_single_grain": DZ_SINGLE_GRAIN,
         "n_clusters": int(len(cl)), "quiet_only": bool(quiet_only),
+        "stable_only": bool(stable_only), **before,
         "frac_below_single_grain": (float(np.mean(cl["dz"] < DZ_SINGLE_GRAIN - TOL))
                                     if len(cl) else np.nan),
+        "dz_min_all": float(cl["dz"].min()) if len(cl) else np.nan,
         "frac_single_on_bound": (float(np.mean(np.abs(one - DZ_SINGLE_GRAIN) <= TOL))
                                  if len(one) else np.nan),
         "slope_per_decade": _slope(np.log10(good["center"].to_numpy(float)), good["dz_mean"]),
@@ -129,31 +174,34 @@ def compute(ens, size_classes=(1, 2, 3, 5, 10), bins_per_decade: int = 5,
 
 
 def plot(data: dict, numbers: dict):
-    """Top: delta z distributions per size class (shifted); bottom: <delta z>, min delta z vs size."""
-    fig, (ax, bx) = style.figure(2, 1, height=4.6, gridspec_kw={"height_ratios": [1.2, 1]})
+    """Top: delta z distributions per size class (shifted, labelled at their right end); bottom:
+    <delta z>, min delta z versus size with the two criteria (legend below the axes)."""
+    fig, (ax, bx) = style.figure(2, 1, height=5.0, gridspec_kw={"height_ratios": [1.2, 1]})
     classes = data["classes"]
     dists = data["distributions"]
     peak = max([float(d["density"].max()) for d in dists if len(d)] + [1.0])
     shift = 0.6 * peak
+    x_hi = max([float(d["center"].max()) for d in dists if len(d)] + [0.5])
     for i, (row, d) in enumerate(zip(classes.itertuples(), dists)):
         color = style.CYCLE[i % len(style.CYCLE)]
         marker = style.MARKERS[i % len(style.MARKERS)]
         off = i * shift
         ax.axhline(off, color=color, lw=0.4, alpha=0.5)
+        text = f"$s$ = {row.label} ({row.n})" if len(d) else f"$s$ = {row.label}: none"
         if len(d):
             mfc = color if marker not in ("+", "x") else None
             ax.plot(d["center"], d["density"] + off, color=color, lw=0.7, marker=marker,
-                    ms=2.5, mfc=mfc, label=f"$s$ = {row.label} ({row.n})")
-        else:
-            ax.plot([], [], color=color, marker=marker, label=f"$s$ = {row.label}: none")
+                    ms=2.5, mfc=mfc)
+        ax.text(x_hi + 0.15, off + 0.08 * shift, text, color=color, fontsize=5.5, ha="left",
+                va="bottom")
     ax.axvline(DZ_GLOBAL, color=style.COLORS["quiet"], ls="-.", lw=0.9)
     ax.axvline(DZ_SINGLE_GRAIN, color=style.CYCLE[1], ls="--", lw=0.9)
+    x0 = ax.get_xlim()[0]
+    ax.set_xlim(min(x0, DZ_SINGLE_GRAIN - 0.3), x_hi + 1.6)
     ax.set_xlabel(r"$\delta z = z - 3 - n_m$")
     ax.set_ylabel(r"$P(\delta z)$ (shifted)")
     ax.set_yticks([])
-    ax.legend(loc="upper left", fontsize=6, handlelength=1.5)
-    style.panel_label(ax, "a", x=0.97)
-    ax.texts[-1].set_ha("right")
+    style.panel_label(ax, "a", x=0.03)
 
     b = data["bins"]
     if len(b):
@@ -166,9 +214,16 @@ def plot(data: dict, numbers: dict):
     bx.axhline(DZ_GLOBAL, color=style.COLORS["quiet"], ls="-.", lw=0.9,
                label="global (generalized isostaticity)")
     bx.axhline(DZ_SINGLE_GRAIN, color=style.CYCLE[1], ls="--", lw=0.9, label="single grain")
+    lo = min([DZ_SINGLE_GRAIN] + ([float(b["dz_min"].min())] if len(b) else []))
+    bx.set_ylim(lo - 0.25, 0.35)
     bx.set_xlabel(r"cluster size $s$")
     bx.set_ylabel(r"$\delta z$")
-    bx.legend(loc="lower right", fontsize=6)
-    style.panel_label(bx, "b")
+    bx.legend(loc="upper center", bbox_to_anchor=(0.5, -0.28), ncol=2, fontsize=6,
+              frameon=False)
+    style.panel_label(bx, "b", x=0.03)
+    if numbers.get("stable_only") and numbers.get("n_clusters_unstable") is not None:
+        bx.text(0.98, 0.04, f"left out: {numbers['n_clusters_unstable']} clusters with a "
+                "locally unstable grain", transform=bx.transAxes, ha="right", va="bottom",
+                fontsize=5.0, color=style.COLORS["guide"])
     fig.tight_layout(h_pad=0.6)
     return fig
