@@ -44,6 +44,10 @@ temporary name, then renamed):
 
 ``summary.json``: machine (``os.cpu_count()``, platform, numba version), date, command, timings
 of each part, the settings, and the fitted scaling (line through the origin, log-log slope).
+
+Modules: ``spec`` (:class:`ChartSpec`, the columns, the piles), ``accuracy`` (part 1),
+``plots`` (part 2), ``scaling`` (part 3); this one writes the files (:func:`run_chart`,
+:func:`replot`). ``python -m tiltpile.bench.chart DIR [--quick] [--parts ...] [--replot]``.
 """
 
 from __future__ import annotations
