@@ -23,7 +23,7 @@ import numpy as np
 import pandas as pd
 
 from tiltpile.analysis import contacts as _ct
-from tiltpile.analysis.stats import window_edges
+from tiltpile.analysis.stats import bootstrap_ci, window_edges
 
 from . import fig3, style
 
@@ -129,6 +129,11 @@ def compute(ens, sample_seed: int | None = None, avalanche_frame: int | None = N
       path_n_windows                windows on the path
       quiet_below_fraction          fraction of quiet frames with delta z_gen < 0
       avalanche_below_fraction      fraction of avalanching frames with delta z_gen < 0
+      quiet_below_per_run, quiet_below_run_mean (_ci_low, _ci_high), quiet_below_run_max
+                                    the same per run, its mean over runs with a bootstrap
+                                    interval over runs (stats.bootstrap_ci), and the largest
+      dz_gen_pre_onset_run_mean (_ci_low, _ci_high)
+                                    mean over runs of each run's pre-onset mean, with interval
       snapshot                      seed, frame, theta_deg of panel b
     """
     f = ens.frames.sort_values(["run", "frame"], kind="stable")
@@ -153,6 +158,19 @@ def compute(ens, sample_seed: int | None = None, avalanche_frame: int | None = N
     q, a = ~av & ok, av & ok
     numbers.update(quiet_below_fraction=float((dz[q] < 0).mean()) if q.any() else np.nan,
                    avalanche_below_fraction=float((dz[a] < 0).mean()) if a.any() else np.nan)
+    # per run, so that the ensemble value carries a bootstrap interval over runs
+    runs = f["run"].to_numpy()
+    per_run = [float((dz[q & (runs == r)] < 0).mean()) if (q & (runs == r)).any() else np.nan
+               for r in ens.seeds]
+    pre_run = [_mean(pre.loc[pre["run"] == r, "dz_gen"]) for r in ens.seeds]
+    ci = bootstrap_ci(per_run)
+    ci_pre = bootstrap_ci(pre_run)
+    numbers.update(quiet_below_per_run=per_run, quiet_below_run_mean=ci["estimate"],
+                   quiet_below_run_mean_ci_low=ci["low"], quiet_below_run_mean_ci_high=ci["high"],
+                   quiet_below_run_max=float(np.nanmax(per_run)) if np.isfinite(per_run).any()
+                   else np.nan,
+                   dz_gen_pre_onset_run_mean=ci_pre["estimate"],
+                   dz_gen_pre_onset_ci_low=ci_pre["low"], dz_gen_pre_onset_ci_high=ci_pre["high"])
 
     seed = ens.sample_seed(sample_seed)
     frame = pick_avalanche_frame(f, seed) if avalanche_frame is None else int(avalanche_frame)
