@@ -23,7 +23,8 @@ def _run(run, lost_fraction, dtheta=0.1):
     lf = np.asarray(lost_fraction, float)
     nf = lf.size
     f = pd.DataFrame({"run": run, "frame": np.arange(nf), "theta_deg": dtheta * np.arange(nf),
-                      "lost_fraction": lf})
+                      "lost_fraction": lf, "n_active": 1000,
+                      "n_lost": np.where(np.isfinite(lf), np.round(np.nan_to_num(lf) * 1000), -1)})
     return resegment(f, cutoff=0.02)
 
 
@@ -148,9 +149,31 @@ def _fig2_frames():
 
 def test_fig2_numbers_on_known_onsets_and_energies():
     fr = _fig2_frames()
-    numbers, d = fig2.compute(_ensemble(fr))
+    numbers, d = fig2.compute(_ensemble(fr), slide_sustain_deg=0.1)
     assert numbers["cutoff"] == 0.02
     th = numbers["theta_m_per_run"]
+    # the avalanches of runs 1 and 2 flow (KE 10^-2.5..10^-2, above the 1e-4 threshold) for
+    # 0.19 deg: slides at their onsets with a 0.1 deg span, none with 0.5 deg; run 3 never slides
+    assert numbers["slide_ke"] == pytest.approx(1e-4) and numbers["slide_sustain_deg"] == 0.1
+    sl = numbers["theta_slide_per_run"]
+    assert sl[:2] == pytest.approx([1.0, 1.5]) and np.isnan(sl[2])
+    assert numbers["n_runs_with_slide"] == 2 and numbers["slide_minus_onset_mean"] == 0.0
+    assert numbers["theta_end_min"] == pytest.approx(6.99)
+    assert np.isnan(numbers["theta_m_ci_low"])                 # two runs: no interval
+    strict, _ = fig2.compute(_ensemble(fr), slide_sustain_deg=0.5)
+    assert np.all(np.isnan(strict["theta_slide_per_run"])) and strict["n_runs_with_slide"] == 0
+    # per-run quiet means: run 3 holds the 10 frames below the line
+    assert numbers["quiet_below_run_mean"] == pytest.approx((10 / 700) / 3)
+    assert numbers["z_quiet_run_mean"] == pytest.approx(3.3)
+    assert numbers["z_quiet_run_mean_ci_low"] == pytest.approx(3.3)   # equal runs: degenerate
+    # lost fraction: 1 contact (quiet) and 50 contacts (avalanches) of 1000: two populations,
+    # the 2% cutoff between them; zero-loss frames counted apart
+    bm = numbers["lost_bimodality"]
+    assert bm["ashman_d"] > 4 and bm["delta_bic"] > 10 and bm["cutoff_between_means"]
+    assert 10 ** bm["means"][1] == pytest.approx(0.05, rel=0.05)
+    assert 0.001 < bm["valley"] < 0.05
+    dens = d["lost_density"]
+    assert dens["count"].sum() == int((fr["lost_fraction"] > 0).sum())
     assert th[:2] == pytest.approx([1.0, 1.5]) and np.isnan(th[2])
     assert numbers["theta_m_mean"] == pytest.approx(1.25)
     assert numbers["theta_m_std"] == pytest.approx(0.5 / np.sqrt(2))
@@ -175,6 +198,7 @@ def test_fig2_numbers_on_known_onsets_and_energies():
     assert numbers["onset_shift_max_deg"] == pytest.approx(0.01)
     assert numbers["first_onset_shift_max_frames"] == 1.0
     assert numbers["onset_unmatched_fraction"] == 0.0
+    assert numbers["onset_shift_median_frames"] == 0.0
     assert numbers["onset_cutoffs_unresolved"] == []
     assert numbers["sample_seed"] == 1 and len(d["sample"]) == 700
     _show(fig2, d, numbers)

@@ -2,14 +2,25 @@
 
 (a) Probability density of the kinetic energy per mobile grain over all frames and runs
     (log-binned, :func:`tiltpile.analysis.log_binned_density`), with the threshold where it leaves
-    the power law of the quiet region (:func:`power_law_departure`, estimator below).
-(b) Probability density of the fraction of contacts lost between successive frames (log-binned;
-    frames losing no contact cannot be placed on the log axis but are in the normalisation), with
-    the avalanche cutoff (2% by default) that separates quiet and avalanching frames.
+    the power law of the quiet region (:func:`tiltpile.analysis.stats.power_law_departure`,
+    estimator below).
+(b) Density (per decade) of the fraction of contacts lost between successive frames, for the
+    frames that lose at least one contact, on bins that respect the integer counts
+    (:func:`tiltpile.analysis.stats.lost_fraction_edges`, Freedman-Diaconis width on log10);
+    the frames losing none (about half of them: they cannot be placed on the log axis) are given
+    as a fraction on the panel and stay in the normalisation. The avalanche cutoff (2% by default)
+    is drawn, with a two-Gaussian fit in log10 of the fraction whose separation (Ashman's D,
+    valley depth, BIC against one Gaussian; :func:`tiltpile.analysis.stats.bimodality`) tells
+    whether the frames fall into two populations, as the paper says, with the cutoff between them.
 (c) delta z_gen = z - 3 - n_m of the bulk against theta for a sample run, avalanching frames
-    shaded.
+    shaded, and the run's first large slide (dotted).
 (d) Probability density of (z, n_m) over all frames (:func:`tiltpile.analysis.density_2d`), with
     the sample run's trace (quiet black, avalanching red) and the marginal line z = 3 + n_m.
+
+Two onsets per run (:func:`tiltpile.analysis.run_table`): the first frame losing more than the
+cutoff (the paper's theta_m) and the first large slide, the first stretch of frames whose kinetic
+energy per grain stays above the panel-a threshold over at least ``slide_sustain_deg`` of tilt
+(:func:`tiltpile.analysis.first_slide`); both with bootstrap intervals over runs.
 
 Kinetic-energy threshold (paper: "the value above which the distribution escapes the power law
 reported in the quiet region"): a straight line log10 P = a + b log10 E is fitted, weighted by
@@ -27,54 +38,15 @@ import warnings
 import numpy as np
 import pandas as pd
 
+from tiltpile.analysis import run_table
 from tiltpile.analysis import stats as _st
 from tiltpile.analysis.avalanche import (SPACING_LIMIT, ResolutionWarning, frame_spacing_check,
                                          onset_robustness_ensemble, stretches)
+from tiltpile.analysis.stats import power_law_departure  # noqa: F401  (the estimator of panel a)
 
 from . import fig3, style
 
 NAME = "fig2_avalanche_criterion"
-
-
-def power_law_departure(density: pd.DataFrame, fit_lo: float, fit_hi: float,
-                        factor: float = 2.0, n_consecutive: int = 2,
-                        min_count: int = 3) -> dict:
-    """Fit a power law to part of a log-binned density and find where the density leaves it.
-
-    density: a :func:`tiltpile.analysis.log_binned_density` table (left, right, center, count,
-    density). The fit: least squares of log10(density) on log10(center) over the bins with
-    fit_lo <= center <= fit_hi and count >= min_count, weights sqrt(count). The departure: the
-    first bin with center > fit_hi such that it and the next ``n_consecutive - 1`` bins (fewer at
-    the end of the table) all differ from the fit by more than ``factor`` (|log10 ratio| >
-    log10 factor; empty bins always differ).
-
-    Returns dict slope, intercept (log10 P = intercept + slope log10 x), n_fit_bins, fit_lo,
-    fit_hi, threshold (left edge of the departing bin; NaN if none or if fewer than 2 bins were
-    fitted), threshold_center.
-    """
-    out = {"slope": np.nan, "intercept": np.nan, "n_fit_bins": 0, "fit_lo": float(fit_lo),
-           "fit_hi": float(fit_hi), "threshold": np.nan, "threshold_center": np.nan}
-    if len(density) == 0 or not (np.isfinite(fit_lo) and np.isfinite(fit_hi)):
-        return out
-    c = density["center"].to_numpy(float)
-    n = density["count"].to_numpy(float)
-    p = density["density"].to_numpy(float)
-    fit = (c >= fit_lo) & (c <= fit_hi) & (n >= min_count)
-    out["n_fit_bins"] = int(fit.sum())
-    if fit.sum() < 2:
-        return out
-    slope, intercept = np.polyfit(np.log10(c[fit]), np.log10(p[fit]), 1, w=np.sqrt(n[fit]))
-    out.update(slope=float(slope), intercept=float(intercept))
-    with np.errstate(divide="ignore"):
-        off = np.abs(np.log10(p) - (intercept + slope * np.log10(c))) > np.log10(factor)
-    off |= n == 0
-    above = np.flatnonzero(c > fit_hi)
-    for i in above:
-        j = min(i + max(1, int(n_consecutive)), c.size)
-        if off[i:j].all():
-            out.update(threshold=float(density["left"].iloc[i]), threshold_center=float(c[i]))
-            break
-    return out
 
 
 def first_onsets(frames: pd.DataFrame, seeds) -> np.ndarray:
@@ -99,36 +71,80 @@ def _max_abs(x) -> float:
     return float(x.max()) if x.size else np.nan
 
 
+def _ci(prefix: str, ci: dict) -> dict:
+    """{prefix_ci_low, prefix_ci_high} of a :func:`tiltpile.analysis.stats.bootstrap_ci` result."""
+    return {f"{prefix}_ci_low": ci["low"], f"{prefix}_ci_high": ci["high"]}
+
+
+def per_run_quiet(frames: pd.DataFrame, seeds) -> pd.DataFrame:
+    """Per run (rows in the order of seeds): mean z, n_m, delta z_gen over its quiet frames and
+    the fraction of its quiet frames with delta z_gen < 0 (NaN for a run without quiet frame)."""
+    rows = []
+    for s in seeds:
+        g = frames[(frames["run"] == s) & ~frames["avalanching"].astype(bool)]
+        dz = g["dz_gen"].to_numpy(float)
+        dz = dz[np.isfinite(dz)]
+        rows.append({"run": s, "z": float(g["z"].mean()) if len(g) else np.nan,
+                     "n_m": float(g["n_m"].mean()) if len(g) else np.nan,
+                     "dz_gen": float(dz.mean()) if dz.size else np.nan,
+                     "below": float((dz < 0).mean()) if dz.size else np.nan})
+    return pd.DataFrame(rows)
+
+
 def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
             ke_bins_per_decade: int = 5, ke_fit_quantiles=(0.3, 0.8), ke_factor: float = 2.0,
-            ke_consecutive: int = 2, lost_bins_per_decade: int = 5, zn_bins=30,
-            robustness_cutoffs=(0.01, 0.02, 0.03, 0.04), max_shift: int = 10
+            ke_consecutive: int = 2, lost_bins_per_decade: int | None = None, zn_bins=30,
+            robustness_cutoffs=(0.01, 0.02, 0.03, 0.04), max_shift: int = 10,
+            slide_sustain_deg: float | None = None, confidence: float = 0.95
             ) -> tuple[dict, dict]:
     """Numbers and plot data of Fig. 2 (module docstring).
 
     sample_seed: run of panels c, d (None: the first run with an onset); ke_column: "ke_trans"
     or "ke_rot"; ke_bins_per_decade, ke_fit_quantiles, ke_factor, ke_consecutive: the KE density
-    and threshold estimator (:func:`power_law_departure`); lost_bins_per_decade: panel b;
-    zn_bins: bins of the (z, n_m) density (numpy.histogram2d); robustness_cutoffs, max_shift:
-    :func:`tiltpile.analysis.onset_robustness_ensemble` against the ensemble's cutoff.
+    and threshold estimator (:func:`tiltpile.analysis.stats.ke_threshold`); lost_bins_per_decade:
+    panel b (None: Freedman-Diaconis on log10 of the lost fraction,
+    :func:`tiltpile.analysis.stats.lost_fraction_edges`); zn_bins: bins of the (z, n_m) density
+    (numpy.histogram2d); robustness_cutoffs, max_shift:
+    :func:`tiltpile.analysis.onset_robustness_ensemble` against the ensemble's cutoff;
+    slide_sustain_deg: the least span of a slide (None: the analysis parameter,
+    :data:`tiltpile.analysis.DEFAULT_PARAMS`); confidence: of the bootstrap intervals over runs
+    (:func:`tiltpile.analysis.stats.bootstrap_ci`, BCa, 9999 resamples, seed 0).
 
     numbers:
       cutoff                       the avalanche cutoff on the lost fraction
-      theta_m_per_run              theta of each run's first onset (deg, seeds in ens.seeds
-                                   order; null without onset)
-      theta_m_mean, _std (ddof 1), _min, _max, n_runs_with_onset
+      theta_m_per_run              theta of each run's first onset by the cutoff (deg, seeds in
+                                   ens.seeds order; null without onset)
+      theta_m_mean, _std (ddof 1), _min, _max, n_runs_with_onset, theta_m_ci_low, _ci_high
       n_onsets                     all onsets of all runs
+      slide_ke, slide_sustain_deg  the slide detector: KE per grain threshold (the panel-a
+                                   threshold unless the analysis parameter slide_ke is set) and
+                                   the least span (:func:`tiltpile.analysis.first_slide`)
+      theta_slide_per_run          theta of each run's first sustained slide (null: none before
+                                   the end of the tilt, theta_end_min)
+      theta_slide_mean, _std, _min, _max, n_runs_with_slide, theta_slide_ci_low, _ci_high
+      slide_minus_onset_mean       mean over runs with both of (first slide - first onset), deg
+      theta_end_min                smallest final tilt of a run (a later slide is not seen)
       avalanching_fraction         fraction of all frames that are avalanching
-      z_quiet_mean, n_m_quiet_mean, dz_gen_quiet_mean   over quiet frames (bulk)
-      quiet_below_fraction         fraction of quiet frames with delta z_gen < 0
+      z_quiet_mean, n_m_quiet_mean, dz_gen_quiet_mean   over quiet frames (bulk, pooled)
+      quiet_below_fraction         fraction of quiet frames with delta z_gen < 0 (pooled)
+      z_quiet_run_mean, n_m_quiet_run_mean, quiet_below_run_mean   means over runs of the
+                                   per-run quiet means, each with _ci_low, _ci_high
       ke_column, ke_threshold      KE per grain where the density leaves the quiet power law
       ke_slope, ke_fit_range       fitted exponent and the fitted KE range
       ke_threshold_avalanching_above, ke_threshold_quiet_above
                                    fraction of avalanching / quiet frames with KE above the
                                    threshold (how well the KE criterion agrees with the
                                    lost-contact one)
-      lost_zero_fraction           frames that lose no contact (not on the log axis of b)
+      lost_zero_fraction           frames that lose no contact (drawn apart in panel b)
+      lost_bins_per_decade         the bins of panel b (Freedman-Diaconis unless given)
+      lost_bimodality              :func:`tiltpile.analysis.stats.bimodality` of log10 of the
+                                   lost fraction of the frames losing >= 1 contact (counts
+                                   dequantized): delta_bic, ashman_d, valley_depth, valley (as a
+                                   fraction, not log10), means/sds (log10), cutoff_between_means,
+                                   cutoff_density_ratio
       onset_shift_max_frames       max |shift| of matched onsets over the robustness cutoffs
+      onset_shift_median_frames    median |shift| over (onset, cutoff != reference) pairs, an
+                                   onset without partner counting as more than max_shift
       onset_shift_max_frames_by_cutoff   the same per cutoff
       onset_shift_max_deg          max |shift| in degrees
       first_onset_shift_max_frames max |shift| of each run's first onset
@@ -144,28 +160,58 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
     numbers: dict = {"cutoff": cutoff}
     d: dict = {"cutoff": cutoff}
 
+    # (a) kinetic energy
+    dep, ke_dens = _st.ke_threshold(f, ke_column, ke_bins_per_decade, ke_fit_quantiles, ke_factor,
+                                    ke_consecutive)
+    thr = dep["threshold"]
+    ke = f[ke_column].to_numpy(float)
+    ok = np.isfinite(ke)
+    above = ke > thr if np.isfinite(thr) else np.zeros_like(ok)
+
+    # onsets both ways, per run
+    sustain = p["slide_sustain_deg"] if slide_sustain_deg is None else float(slide_sustain_deg)
+    slide_ke = p["slide_ke"] if p["slide_ke"] is not None else thr
+    rt = (run_table(f, slide_ke=float(slide_ke), slide_sustain_deg=sustain)
+          if np.isfinite(slide_ke) else None)
     th = first_onsets(f, ens.seeds)
     st = _stats(th)
     numbers.update(theta_m_per_run=th, theta_m_mean=st["mean"], theta_m_std=st["std"],
                    theta_m_min=st["min"], theta_m_max=st["max"], n_runs_with_onset=st["n"],
-                   n_onsets=int(f["onset"].astype(bool).sum()),
+                   **_ci("theta_m", _st.bootstrap_ci(th, confidence=confidence)),
+                   n_onsets=int(f["onset"].astype(bool).sum()))
+    if rt is not None:
+        by = rt.set_index("run")
+        sl = np.array([float(by["theta_first_slide"].get(s, np.nan)) for s in ens.seeds])
+        ends = rt["theta_end"].to_numpy(float)
+    else:
+        sl = np.full(len(ens.seeds), np.nan)
+        ends = np.array([float(g["theta_deg"].max()) for _, g in f.groupby("run")])
+    ss = _stats(sl)
+    both = np.isfinite(sl) & np.isfinite(th)
+    numbers.update(slide_ke=float(slide_ke), slide_sustain_deg=float(sustain),
+                   theta_slide_per_run=sl, theta_slide_mean=ss["mean"], theta_slide_std=ss["std"],
+                   theta_slide_min=ss["min"], theta_slide_max=ss["max"],
+                   n_runs_with_slide=ss["n"],
+                   **_ci("theta_slide", _st.bootstrap_ci(sl, confidence=confidence)),
+                   slide_minus_onset_mean=float(np.mean(sl[both] - th[both])) if both.any()
+                   else np.nan,
+                   theta_end_min=float(np.min(ends)) if ends.size else np.nan,
                    avalanching_fraction=float(av.mean()) if av.size else np.nan)
+
+    # the quiet network, pooled and per run
     q = f[~av]
     dzq = q["dz_gen"].to_numpy(float)
     dzq = dzq[np.isfinite(dzq)]
     numbers.update(z_quiet_mean=_stats(q["z"])["mean"], n_m_quiet_mean=_stats(q["n_m"])["mean"],
                    dz_gen_quiet_mean=float(dzq.mean()) if dzq.size else np.nan,
                    quiet_below_fraction=float((dzq < 0).mean()) if dzq.size else np.nan)
+    pr = per_run_quiet(f, ens.seeds)
+    for col, key in (("z", "z_quiet_run_mean"), ("n_m", "n_m_quiet_run_mean"),
+                     ("below", "quiet_below_run_mean")):
+        ci = _st.bootstrap_ci(pr[col], confidence=confidence)
+        numbers[key] = ci["estimate"]
+        numbers.update(_ci(key, ci))
 
-    # (a) kinetic energy
-    ke = f[ke_column].to_numpy(float)
-    ke_dens = _st.log_binned_density(ke, ke_bins_per_decade)
-    kq = ke[~av & np.isfinite(ke) & (ke > 0)]
-    lo, hi = (np.quantile(kq, ke_fit_quantiles) if kq.size else (np.nan, np.nan))
-    dep = power_law_departure(ke_dens, lo, hi, ke_factor, ke_consecutive)
-    thr = dep["threshold"]
-    ok = np.isfinite(ke)
-    above = ke > thr if np.isfinite(thr) else np.zeros_like(ok)
     numbers.update(ke_column=ke_column, ke_threshold=thr, ke_slope=dep["slope"],
                    ke_fit_range=[dep["fit_lo"], dep["fit_hi"]],
                    ke_threshold_avalanching_above=float(above[av & ok].mean())
@@ -174,11 +220,34 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
                    if (~av & ok).any() and np.isfinite(thr) else np.nan)
     d.update(ke_density=ke_dens, ke_fit=dep, ke_column=ke_column)
 
-    # (b) lost fraction
-    lost = _st.log_binned_density(f["lost_fraction"], lost_bins_per_decade)
-    nt = lost.attrs.get("n_total", 0)
-    numbers["lost_zero_fraction"] = lost.attrs["n_nonpositive"] / nt if nt else np.nan
+    # (b) lost fraction: frames losing >= 1 contact on count-respecting log bins; the others apart
+    lf = f["lost_fraction"].to_numpy(float)
+    fin = np.isfinite(lf)
+    nl = np.where(fin, f["n_lost"].to_numpy(float), np.nan)
+    na = f["n_active"].to_numpy(float)
+    bpd = (_st.fd_bins_per_decade(lf[fin & (lf > 0)]) if lost_bins_per_decade is None
+           else int(lost_bins_per_decade))
+    edges = _st.lost_fraction_edges(nl, na, bpd)
+    pos = lf[fin & (lf > 0)]
+    n_fin = int(fin.sum())
+    if edges.size >= 2 and pos.size:
+        count, _ = np.histogram(pos, bins=edges)
+        lw = np.log10(edges[1:] / edges[:-1])
+        lost = pd.DataFrame({"left": edges[:-1], "right": edges[1:],
+                             "center": np.sqrt(edges[:-1] * edges[1:]), "count": count,
+                             "density": count / (n_fin * lw)})    # per decade of the fraction
+    else:
+        lost = pd.DataFrame(columns=["left", "right", "center", "count", "density"])
+    numbers["lost_zero_fraction"] = float(np.mean(lf[fin] <= 0)) if n_fin else np.nan
+    numbers["lost_bins_per_decade"] = int(bpd)
+    y = _st.dequantized_log_fraction(nl, na, seed=0)
+    bm = _st.bimodality(y, cutoff=np.log10(cutoff))
+    bm["valley"] = float(10 ** bm["valley"]) if np.isfinite(bm["valley"]) else np.nan
+    numbers["lost_bimodality"] = bm
     d["lost_density"] = lost
+    d["lost_zero_fraction"] = numbers["lost_zero_fraction"]
+    d["lost_mixture"] = bm
+    d["lost_n_finite"] = n_fin
 
     # robustness of the onsets to the cutoff. The cutoffs are varied on purpose, so the
     # library's ResolutionWarning (frames too far apart for a cutoff: the quiet frames' median
@@ -195,13 +264,19 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
     if len(rob):
         by_cut = {f"{c:g}": _max_abs(g["shift_frames"]) for c, g in rob.groupby("cutoff")}
         first = rob[rob["onset"] == 0]
+        other = rob[~np.isclose(rob["cutoff"], cutoff)]
+        sh = np.abs(other["shift_frames"].to_numpy(float))
+        sh[~np.isfinite(sh)] = np.inf                # no partner: moved by more than max_shift
+        med = float(np.median(sh)) if sh.size else np.nan
         numbers.update(onset_shift_max_frames=_max_abs(rob["shift_frames"]),
+                       onset_shift_median_frames=med if np.isfinite(med) else None,
                        onset_shift_max_frames_by_cutoff=by_cut,
                        onset_shift_max_deg=_max_abs(rob["shift_deg"]),
                        first_onset_shift_max_frames=_max_abs(first["shift_frames"]),
                        onset_unmatched_fraction=float(rob["shift_frames"].isna().mean()))
     else:
-        numbers.update(onset_shift_max_frames=np.nan, onset_shift_max_frames_by_cutoff={},
+        numbers.update(onset_shift_max_frames=np.nan, onset_shift_median_frames=np.nan,
+                       onset_shift_max_frames_by_cutoff={},
                        onset_shift_max_deg=np.nan, first_onset_shift_max_frames=np.nan,
                        onset_unmatched_fraction=np.nan)
 
@@ -209,7 +284,8 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
     seed = ens.sample_seed(sample_seed)
     numbers["sample_seed"] = seed
     d["sample"] = f[f["run"] == seed][["frame", "theta_deg", "z", "n_m", "dz_gen",
-                                        "avalanching"]].reset_index(drop=True)
+                                        "avalanching", ke_column]].reset_index(drop=True)
+    d["sample_slide"] = float(sl[list(ens.seeds).index(seed)]) if seed in ens.seeds else np.nan
     try:
         d["zn_density"] = _st.density_2d(f["z"], f["n_m"], bins=zn_bins)
     except _st.InsufficientDataError:
@@ -252,30 +328,44 @@ def plot(data: dict, numbers: dict):
     a.set_ylabel(r"$P($" + unit + r"$)$")
     style.panel_label(a, "a", x=0.88)
 
-    # (b) lost fraction
+    # (b) lost fraction: density per decade of the frames losing >= 1 contact, the two-component
+    # fit of the module docstring, and the frames losing none (not on a log axis) as a number
     lo = data["lost_density"]
+    bm = data["lost_mixture"]
     if len(lo):
         nz = lo["count"].to_numpy() > 0
         qq = lo["center"].to_numpy() <= data["cutoff"]
-        for sel, col in ((qq, style.COLORS["quiet"]), (~qq, style.COLORS["avalanche"])):
-            b.loglog(lo["center"][nz & sel], lo["density"][nz & sel], ls="none", marker="s", ms=2.5,
-                     color=col)
-        b.loglog(lo["center"][nz], lo["density"][nz], ls="-", lw=0.5, color=style.COLORS["guide"],
-                 zorder=0)
+        for sel, col, lab in ((qq, style.COLORS["quiet"], "quiet"),
+                              (~qq, style.COLORS["avalanche"], "avalanching")):
+            b.semilogx(lo["center"][nz & sel], lo["density"][nz & sel], ls="none", marker="s",
+                       ms=2.5, color=col, label=lab)
+        b.semilogx(lo["center"][nz], lo["density"][nz], ls="-", lw=0.5,
+                   color=style.COLORS["guide"], zorder=0)
+        if np.isfinite(bm["ashman_d"]):
+            n_pos = float(lo["count"].sum())
+            scale = n_pos / max(float(data["lost_n_finite"]), 1.0)
+            xs = np.linspace(np.log10(lo["left"].iloc[0]), np.log10(lo["right"].iloc[-1]), 300)
+            b.semilogx(10 ** xs, scale * _st.mixture_pdf(xs, bm["weights"], bm["means"], bm["sds"]),
+                       color=style.COLORS["fit"], lw=0.8, ls="--", label="2 Gaussians", zorder=1)
+        b.set_xlim(lo["left"].iloc[0], lo["right"].iloc[-1])
+        b.set_ylim(0, float(lo["density"].max()) * 2.4)      # room above the data for the key
     b.axvline(data["cutoff"], color=style.COLORS["avalanche"], lw=1.0,
               label=f"cutoff {100 * data['cutoff']:g}%")
-    if len(lo) and (lo["count"] > 0).any():
-        nzl = lo[lo["count"] > 0]
-        b.set_xlim(10 ** np.floor(np.log10(nzl["left"].min()) + 1e-9),
-                   10 ** np.ceil(np.log10(nzl["right"].max()) - 1e-9))
+    z0 = data.get("lost_zero_fraction", np.nan)
+    txt = f"no contact lost: {100 * z0:.0f}% of frames" if np.isfinite(z0) else ""
+    if np.isfinite(bm["ashman_d"]):
+        txt += (f"\nAshman $D$ = {bm['ashman_d']:.1f}, valley {bm['valley_depth']:.2f}")
+    b.text(0.13, 0.965, txt, transform=b.transAxes, ha="left", va="top", fontsize=5.5)
     b.set_xlabel("fraction of contacts lost")
-    b.set_ylabel("probability density")
-    b.legend(loc="lower left", handlelength=1.5)
-    style.panel_label(b, "b", x=0.88)
+    b.set_ylabel("density per decade")
+    b.legend(loc="upper right", bbox_to_anchor=(1.0, 0.83), handlelength=1.2, fontsize=5.5,
+             borderaxespad=0.2, labelspacing=0.25)
+    style.panel_label(b, "b")
     from matplotlib.ticker import NullFormatter
-    for ax in (a, b):
+    for ax in (a,):
         ax.xaxis.set_minor_formatter(NullFormatter())
         ax.yaxis.set_minor_formatter(NullFormatter())
+    b.xaxis.set_minor_formatter(NullFormatter())
 
     # (c) delta z_gen of the sample run
     s = data["sample"]
@@ -286,6 +376,11 @@ def plot(data: dict, numbers: dict):
                   alpha=0.45, lw=0)
     c.axhline(0, color=style.COLORS["marginal"], lw=0.8)
     c.plot(th, s["dz_gen"], color=style.COLORS["quiet"], lw=0.7)
+    t_sl = data.get("sample_slide", np.nan)
+    if np.isfinite(t_sl):
+        c.axvline(t_sl, color=style.COLORS["avalanche"], lw=0.8, ls=":")
+        c.text(t_sl, 0.965, "first slide ", transform=c.get_xaxis_transform(), ha="right",
+               va="top", fontsize=5.5, color=style.COLORS["avalanche"])
     c.set_xlabel(r"$\theta$ (deg)")
     c.set_ylabel(r"$\delta z^{gen} = z - 3 - n_m$")
     c.set_xlim(th.min() if th.size else 0, th.max() if th.size else 1)
@@ -295,7 +390,7 @@ def plot(data: dict, numbers: dict):
         r = max(dzs.max(), 0.0) - min(dzs.min(), 0.0)
         c.set_ylim(min(dzs.min(), 0.0) - 0.05 * r, max(dzs.max(), 0.0) + 0.25 * r)
     style.panel_label(c, "c")
-    c.text(0.97, 0.96, f"run {data['sample_seed']}", transform=c.transAxes, ha="right", va="top",
+    c.text(0.1, 0.965, f"run {data['sample_seed']}", transform=c.transAxes, ha="left", va="top",
            fontsize=6.5)
 
     # (d) (z, n_m) density and the sample trace
