@@ -35,6 +35,7 @@ import pandas as pd
 
 from tiltpile.analysis import (InsufficientDataError, cluster_size_windows,
                                discrete_log_binned_density, fit_power_law_cutoff)
+from tiltpile.analysis.stats import bootstrap_runs_ci
 
 from . import style
 
@@ -88,7 +89,8 @@ def xi_trend(center, xi) -> dict:
 
 def compute(ens, windows=(-14.4, -4.6, -0.75, -0.25), width: float = 0.5, s_min: int = 2,
             delta_pool=(-1.0, 0.0), delta_guide: float = 2.5, inset_lo: float = -15.0,
-            far_below: float = -4.0, min_samples: int = 50, bins_per_decade: int = 5):
+            far_below: float = -4.0, min_samples: int = 50, bins_per_decade: int = 5,
+            delta_bootstrap: int = 199):
     """P(s) per window of theta - theta_m and during avalanches, fits, xi and <S_max> insets.
 
     ens: :class:`tiltpile.figures.data.Ensemble`. windows: centres (deg) of the theta - theta_m
@@ -97,11 +99,15 @@ def compute(ens, windows=(-14.4, -4.6, -0.75, -0.25), width: float = 0.5, s_min:
     delta_guide: slope of the guide line, and delta of the xi fits if the pooled fit is refused;
     inset_lo: left end of the inset windows; far_below: <S_max> "far from onset" averages the
     quiet frames with theta - theta_m < far_below; min_samples: fewest clusters for a fit;
-    bins_per_decade: log bins of the densities.
+    bins_per_decade: log bins of the densities; delta_bootstrap: resamples of the runs for the
+    interval of the pooled delta (:func:`tiltpile.analysis.stats.bootstrap_runs_ci`; 0: none).
 
     numbers:
       delta_pooled, delta_pooled_err, n_pooled: the exponent (step 1 of the module docstring) and
         the number of clusters (of size >= s_min) it was fitted to;
+      delta_pooled_ci_low, _ci_high, delta_pooled_n_runs: 95% percentile bootstrap interval of
+        delta over runs (whole runs resampled; the Fisher error assumes independent clusters,
+        but clusters of one run and neighbouring frames are correlated);
       xi_delta: the delta held fixed in the xi fits;
       windows: one dict per main-panel window then ``avalanche``: center (None for the
         avalanche), n_frames, n_clusters (all sizes), delta, delta_err (free fit), xi, xi_err
@@ -127,6 +133,17 @@ def compute(ens, windows=(-14.4, -4.6, -0.75, -0.25), width: float = 0.5, s_min:
         pool = cl.loc[quiet & (t >= delta_pool[0]) & (t < delta_pool[1]), "size"].to_numpy()
         pooled = _fit(pool, s_min, None, min_samples)
         xi_delta = pooled["delta"] if np.isfinite(pooled["delta"]) else float(delta_guide)
+        # bootstrap over runs: resample whole runs, pool their clusters, refit delta
+        sel = quiet & (t >= delta_pool[0]) & (t < delta_pool[1])
+        by_run = [g["size"].to_numpy() for _, g in cl[sel].groupby("run")]
+
+        def _delta_of(groups):
+            sizes = np.concatenate(groups) if groups else np.zeros(0, int)
+            with warnings.catch_warnings():
+                warnings.simplefilter("ignore")
+                return _fit(sizes, s_min, None, min_samples)["delta"]
+        boot = (bootstrap_runs_ci(by_run, _delta_of, n_resamples=delta_bootstrap, seed=0)
+                if delta_bootstrap and len(by_run) >= 2 else None)
 
         rows, curves = [], []
         for c in windows:
@@ -170,6 +187,9 @@ def compute(ens, windows=(-14.4, -4.6, -0.75, -0.25), width: float = 0.5, s_min:
     numbers = {
         "delta_pooled": pooled["delta"], "delta_pooled_err": pooled["delta_err"],
         "n_pooled": pooled["n_fit"], "delta_pool_range": list(delta_pool),
+        "delta_pooled_ci_low": boot["low"] if boot else np.nan,
+        "delta_pooled_ci_high": boot["high"] if boot else np.nan,
+        "delta_pooled_n_runs": len(by_run),
         "xi_delta": float(xi_delta), "s_min": int(s_min), "width": float(width),
         "windows": {r["label"]: {k: r[k] for k in keys} for r in rows},
         "xi_spearman": trend["spearman"], "xi_slope_log10_per_deg": trend["slope_log10_xi_per_deg"],
@@ -190,13 +210,14 @@ def plot(data: dict, numbers: dict):
     rows = data["rows"]
     smax_plot = 1
     ymin = np.inf
+    empty = []
     for i, (row, dens, fit) in enumerate(zip(rows.itertuples(), data["densities"], data["fits"])):
         color = style.CYCLE[i % len(style.CYCLE)]
         marker = style.MARKERS[i % len(style.MARKERS)]
         name = (r"$\theta-\theta_m = %s^\circ$" % row.label if row.label != "avalanche"
                 else "avalanche")
         if len(dens) == 0:
-            ax.plot([], [], marker=marker, ls="none", color=color, label=f"{name}: no clusters")
+            empty.append(name)
             continue
         d = dens[dens["count"] > 0]
         mfc = color if marker not in ("+", "x") else None
@@ -207,18 +228,31 @@ def plot(data: dict, numbers: dict):
         if fit is not None:
             s = np.unique(np.geomspace(data["s_min"], d["right"].max(), 200).astype(int))
             ax.plot(s, fit.pmf(s), color=color, lw=0.8)
-    # slope guide, anchored half a decade above the first density at s = 2 * s_min
+    # slope guide on the data: through the window closest to the onset (the paper estimates delta
+    # "from the distribution just above onset"), fitted in log-log with the slope held at -delta
+    # over its bins s_min <= s < 10 s_min, where the cut-off has not set in
     dg = data["delta_guide"]
-    s = np.array([2.0 * data["s_min"], max(20.0 * data["s_min"], 10.0)])
-    anchor = 0.5
-    for dens in data["densities"][::-1]:
-        if len(dens):
-            anchor = 3.0 * float(dens["density"].iloc[0])
+    ref = None
+    for row, dens in list(zip(rows.itertuples(), data["densities"]))[::-1]:
+        if len(dens) and row.label != "avalanche":
+            ref = dens[dens["count"] > 0]
             break
-    ax.plot(s, anchor * (s / s[0]) ** (-dg), ls="--", color=style.COLORS["guide"],
-            label=rf"slope $-{dg:g}$" + (
-                rf" (fit: $\delta = {numbers['delta_pooled']:.2f} \pm {numbers['delta_pooled_err']:.2f}$)"
-                if np.isfinite(numbers["delta_pooled"]) else ""))
+    if ref is None:
+        ref = next((d[d["count"] > 0] for d in data["densities"] if len(d)), None)
+    if ref is not None and len(ref):
+        head = ref[ref["center"] < 10.0 * data["s_min"]]
+        head = head if len(head) else ref
+        c = np.mean(np.log10(head["density"]) + dg * np.log10(head["center"]))
+        s = np.array([float(data["s_min"]), 20.0 * data["s_min"]])
+        ax.plot(s, 10 ** (c - dg * np.log10(s)), ls="--", lw=1.0, color=style.COLORS["guide"],
+                zorder=0, label=rf"slope $-{dg:g}$" + (
+                    rf" (fit: $\delta = {numbers['delta_pooled']:.2f} \pm "
+                    rf"{numbers['delta_pooled_err']:.2f}$)"
+                    if np.isfinite(numbers["delta_pooled"]) else ""))
+    if empty:
+        ax.text(0.02, 0.015, "no clusters: " + ", ".join(empty) + " (no quiet frame that far "
+                "before an onset)", transform=ax.transAxes, ha="left", va="bottom", fontsize=5.0,
+                color=style.COLORS["guide"])
     ax.set_xscale("log")
     ax.set_yscale("log")
     if np.isfinite(ymin):
@@ -226,7 +260,7 @@ def plot(data: dict, numbers: dict):
     ax.set_xlim(data["s_min"] * 0.8, smax_plot * 1.3)
     ax.set_xlabel(r"cluster size $s$")
     ax.set_ylabel(r"$P(s)$")
-    ax.legend(loc="lower left", fontsize=6)
+    ax.legend(loc="lower left", fontsize=6, bbox_to_anchor=(0.0, 0.05 if empty else 0.0))
     inset = data["inset"]
     ok = np.isfinite(inset["xi"]) & (inset["xi"] < XI_UNCONSTRAINED)
     ia = ax.inset_axes([0.50, 0.63, 0.22, 0.33])
