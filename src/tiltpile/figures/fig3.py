@@ -196,10 +196,17 @@ def draw_snapshot(ax, lay: dict | None, legend: bool = True) -> None:
     if legend:
         def dot(c):
             return Line2D([], [], ls="none", marker="o", ms=4, mfc=c, mec="none")
-        handles = [dot(style.COLORS["cluster"]),
-                   Line2D([], [], color=style.COLORS["critical_contact"], lw=1.2),
-                   dot(style.COLORS["fail_in_cluster"]), dot(style.COLORS["fail_outside"])]
-        labels = ["in cluster", "critical contact", "failing, in cluster", "failing, outside"]
+        cat = np.asarray(lay["category"])
+        items = [(np.any(cat == CLUSTER), dot(style.COLORS["cluster"]), "in cluster"),
+                 (len(lay["segments"]) > 0,
+                  Line2D([], [], color=style.COLORS["critical_contact"], lw=1.2),
+                  "critical contact"),
+                 (np.any(cat == FAIL_IN_CLUSTER), dot(style.COLORS["fail_in_cluster"]),
+                  "failing, in cluster"),
+                 (np.any(cat == FAIL_OUTSIDE), dot(style.COLORS["fail_outside"]),
+                  "failing, outside")]
+        handles = [h for shown, h, _ in items if shown]      # only what the picture holds
+        labels = [t for shown, _, t in items if shown]
         ax.legend(handles, labels, loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=4,
                   handlelength=1.2, handletextpad=0.3, columnspacing=0.8, borderaxespad=0.1)
 
@@ -428,10 +435,13 @@ def plot(data: dict, numbers: dict):
     names = {"n_lost": "lost contacts", "n_failing": "failing grains"}
     ax.axhline(0, color=style.COLORS["guide"], lw=0.6)
     ax.axvline(0, color=style.COLORS["guide"], lw=0.6, ls=":")
-    ax.plot(ca["tau"], ca["C"], ls="--", marker="^", ms=2.5, color=style.COLORS["guide"],
-            mfc="none", label=names.get(data["alt_column"], data["alt_column"]))
-    ax.plot(c["tau"], c["C"], ls="-", marker="o", ms=3, color=style.COLORS["quiet"],
-            label=names.get(data["failure_column"], data["failure_column"]))
+    # the two measures of N^f give nearly the same C(tau): the main one as filled black dots, the
+    # other as large open blue triangles on top, so that both stay visible where they coincide
+    ax.plot(c["tau"], c["C"], ls="-", marker="o", ms=2.5, lw=0.8, color=style.COLORS["quiet"],
+            label=names.get(data["failure_column"], data["failure_column"]), zorder=3)
+    ax.plot(ca["tau"], ca["C"], ls=(0, (3, 2)), marker="^", ms=4.5, mew=0.7, lw=0.8,
+            color=style.CYCLE[1], mfc="none",
+            label=names.get(data["alt_column"], data["alt_column"]), zorder=4)
     dt = data.get("dtheta_frame", np.nan)
     unit = f" (frames, {dt:.2g}$^\\circ$)" if np.isfinite(dt) else " (frames)"
     ax.set_xlabel(r"$\tau$" + unit)
