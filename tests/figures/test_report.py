@@ -56,3 +56,82 @@ def test_no_figures_is_an_error_and_writes_nothing(tmp_path):
     with pytest.raises(FileNotFoundError, match="no fig"):
         report.write_report(tmp_path, tmp_path / "R.md")
     assert not (tmp_path / "R.md").exists()
+
+
+def _fig2(**numbers):
+    base = {"cutoff": 0.02, "theta_m_mean": 9.7, "theta_m_min": 7.1, "theta_m_max": 11.7,
+            "theta_m_ci_low": 8.1, "theta_m_ci_high": 10.9, "n_runs_with_onset": 6,
+            "theta_slide_per_run": [18.4, None, 18.65, None, None, None], "slide_ke": 4e-4,
+            "slide_sustain_deg": 0.5, "theta_end_min": 22.0,
+            "z_quiet_run_mean": 3.215, "z_quiet_run_mean_ci_low": 3.209,
+            "z_quiet_run_mean_ci_high": 3.22, "lost_zero_fraction": 0.49,
+            "lost_bimodality": {"ashman_d": 3.3, "delta_bic": 280.0, "valley_depth": 0.6,
+                                "valley": 0.002, "means": [-3.1, -2.05],
+                                "cutoff_between_means": False, "cutoff_density_ratio": 0.72},
+            "onset_shift_median_frames": 5.0, "onset_shift_max_frames": 10.0,
+            "onset_unmatched_fraction": 0.22}
+    base.update(numbers)
+    return _doc("fig2_avalanche_criterion", base)
+
+
+def _verdicts(tmp_path, docs):
+    _write(tmp_path, docs)
+    text = report.write_report(tmp_path, tmp_path / "R.md").read_text()
+    out = {}
+    for c in report.CLAIMS:
+        row = _row(text, c.text)
+        out[c.key] = row.rsplit("**", 2)[-2]
+    return out, text
+
+
+def test_onset_claims_compare_like_with_like(tmp_path):
+    v, text = _verdicts(tmp_path, [_fig2()])
+    assert v["theta_m"] == "disagrees"            # no run quiet up to 14.4 deg
+    assert v["theta_slide"] == "inconclusive"     # 4 of 6 runs do not slide before 22 deg
+    assert v["z_mean"] == "disagrees"             # 3.5 far outside the interval
+    assert v["two_populations"] == "agrees" and v["cutoff_in_gap"] == "disagrees"
+    assert v["robust"] == "disagrees"             # median 5 frames
+    assert "> 22.0" in _row(text, next(c.text for c in report.CLAIMS if c.key == "theta_slide"))
+    # more than half the runs slide: the median is known and judged against 21 +- 2 deg
+    v, _ = _verdicts(tmp_path, [_fig2(theta_slide_per_run=[20.1, 21.5, 19.9, 22.6, None],
+                                      theta_m_max=15.0, onset_shift_median_frames=1.0,
+                                      z_quiet_run_mean_ci_high=3.46)])
+    assert v["theta_slide"] == "agrees" and v["theta_m"] == "agrees"
+    assert v["robust"] == "agrees" and v["z_mean"] == "agrees"
+    v, _ = _verdicts(tmp_path, [_fig2(theta_slide_per_run=[15.0, 15.5, 16.0, None])])
+    assert v["theta_slide"] == "disagrees"
+    # onsets without partners: the median move is "more than 10 frames"
+    v, _ = _verdicts(tmp_path, [_fig2(onset_shift_median_frames=None)])
+    assert v["robust"] == "disagrees"
+
+
+def test_fig6_minimum_below_the_single_grain_bound_disagrees(tmp_path):
+    six = {"classes": {"1": {"dz_min": -2.5, "dz_mean": -1.0}}, "frac_below_single_grain": 0.001,
+           "largest_bin": {"size_lo": 40, "dz_min": -0.39, "dz_mean": -0.18},
+           "slope_per_decade": 0.39}
+    v, _ = _verdicts(tmp_path, [_doc("fig6_cluster_stability", six)])
+    assert v["dz_min"] == "disagrees" and v["dz_shift"] == "disagrees"
+    six.update(classes={"1": {"dz_min": -1.5, "dz_mean": -1.0}}, frac_below_single_grain=0.0,
+               n_clusters_unstable=1310, frac_clusters_unstable=0.012)
+    v, text = _verdicts(tmp_path, [_doc("fig6_cluster_stability", six)])
+    assert v["dz_min"] == "agrees" and "1310 clusters" in text
+
+
+def test_crossing_uses_the_interval_over_runs(tmp_path):
+    one = {"quiet_below_run_mean": 0.032, "quiet_below_run_mean_ci_low": 0.018,
+           "quiet_below_run_mean_ci_high": 0.062, "avalanche_below_fraction": 0.73,
+           "dz_gen_pre_onset": 0.021}
+    v, _ = _verdicts(tmp_path, [_doc("fig1_isostaticity", one)])
+    assert v["crossing"] == "disagrees"
+    v, _ = _verdicts(tmp_path, [_doc("fig1_isostaticity", dict(one, quiet_below_run_mean_ci_low=0.004))])
+    assert v["crossing"] == "agrees"
+
+
+def test_scales_table_says_not_yet_run(tmp_path):
+    _write(tmp_path, [_fig2()])
+    text = report.write_report(tmp_path, tmp_path / "R.md").read_text()
+    assert "## The same numbers at every scale" in text
+    row = next(line for line in text.splitlines() if line.startswith("| first 2% onset"))
+    assert row.count("not yet run") == 2 and "9.7 [8.1, 10.9]" in row
+    assert "## How each claim is tested" in text
+    assert all(c.key in report.RULES for c in report.CLAIMS)
