@@ -53,3 +53,12 @@ def test_mp4_without_ffmpeg_falls_back_to_gif(tiny_run, tmp_path, monkeypatch):
     with pytest.warns(RuntimeWarning, match="no ffmpeg"):
         r = movie.render(tiny_run, tmp_path / "run.mp4", frames="0:2", width_px=320, progress=False)
     assert r["path"].endswith("run.gif") and (tmp_path / "run.gif").exists()
+
+
+def test_frame_size_does_not_depend_on_the_callers_style(tiny_run, tmp_path):
+    import matplotlib
+
+    with matplotlib.rc_context({"savefig.bbox": "tight", "font.size": 4}):
+        r = movie.render(tiny_run, tmp_path / "s.png", frames="5", width_px=500, progress=False)
+    with Image.open(tmp_path / "s.png") as im:
+        assert im.size == (r["width"], r["height"]) and im.size[0] == 500

@@ -202,6 +202,12 @@ def _height(run, sel, radius) -> float:
     return max(max(tops), 1.1 * tops[0])
 
 
+# what the pictures assume whatever the caller's matplotlib style (a tight bounding box would
+# change the frame size between frames, which the encoders refuse)
+RC = {"savefig.bbox": "standard", "savefig.transparent": False, "savefig.facecolor": "white",
+      "figure.facecolor": "white", "font.size": 10, "text.usetex": False}
+
+
 def render(run_path, out, color: str = "clusters", frames: str | None = None, forces: bool = False,
            fps: int = 20, width_px: int = 1280, dpi: int = 100, progress: bool = True) -> dict:
     """Draw the selected frames of a run to ``out`` (.mp4, .gif, or .png for one frame).
@@ -209,6 +215,13 @@ def render(run_path, out, color: str = "clusters", frames: str | None = None, fo
     An .mp4 without any ffmpeg is written as a .gif beside it (a RuntimeWarning says so).
     Returns dict path, frames, width, height (pixels), bytes, seconds.
     """
+    import matplotlib
+
+    with matplotlib.rc_context(RC):
+        return _render(run_path, out, color, frames, forces, fps, width_px, dpi, progress)
+
+
+def _render(run_path, out, color, frames, forces, fps, width_px, dpi, progress) -> dict:
     from matplotlib import animation, rcParams
 
     t0 = time.perf_counter()
