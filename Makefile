@@ -5,12 +5,10 @@ PYTHON ?= python3
 VENV := .venv
 PY := $(VENV)/bin/python
 STAMP := $(VENV)/.tiltpile-installed
-PRESET ?= default
-DATA ?= data/$(PRESET)
-NOTEBOOKS := $(wildcard notebooks/fig*.ipynb)
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.venv/numba-cache
 
-.PHONY: setup test test-fast figures bench clean-data
+.PHONY: setup test test-fast figures bench clean-data FORCE
+.SECONDEXPANSION:
 
 setup: $(STAMP)
 
@@ -28,37 +26,110 @@ test: setup
 test-fast: setup
 	$(PY) -m pytest -q -m "not slow"
 
-# `make figures [PRESET=default|smoke|paper] [RUNS=M] [SCHEDULER=tcp://host:port] [WORKERS=W]`:
-# the ensemble (finished runs are skipped, interrupted ones resume), its observables, every figure
-# notebook through papermill (executed copies in notebooks/executed/PRESET/), then the reproduction
-# report. The default preset writes figures/ and paper/REPRODUCTION.md (both committed); other
-# presets write figures/PRESET/ and its own REPRODUCTION.md there.
+# ---------------------------------------------------------------------------------------------
+# `make figures [PRESET=default|smoke|paper] [RUNS=M] [SCHEDULER=tcp://host:port] [WORKERS=W]
+#               [SET="section.key=value ..."] [NB="-p name value ..."] [VARIANT=name]`
+#
+# A build graph: the ensemble (finished runs are skipped, interrupted ones resume) and its
+# observables, then one target per figure, $(FIGURES)/figN_<name>.json (with its PNG and PDF),
+# rebuilt only when its notebook, its figure module, the shared figure code, the analysis code,
+# the runs or the notebook parameters changed; then the reproduction report from the JSON.
+# The default preset writes figures/ and paper/REPRODUCTION.md (both committed); another preset
+# writes figures/PRESET/. SET (configuration keys, a new ensemble) and NB (papermill parameters,
+# e.g. NB="-p lost_gap 0.0001") need VARIANT=name: the variant's runs go to data/PRESET-VARIANT/
+# (with NB alone, links to the preset's runs) and its figures to figures/VARIANT/
+# (figures/PRESET/VARIANT/ for another preset), leaving the default figures untouched.
+PRESET ?= default
+VARIANT ?=
+SET ?=
+NB ?=
 RUNS_smoke := 4
 RUNS_default := 6
 RUNS_paper := 50
 RUNS ?= $(RUNS_$(PRESET))
+
+BASE_DATA := data/$(PRESET)
+ifeq ($(strip $(VARIANT)),)
+ifneq ($(strip $(SET)$(NB)),)
+$(error SET and NB change the results: give VARIANT=name, so that the default figures stay untouched)
+endif
+DATA ?= $(BASE_DATA)
 FIGURES ?= $(if $(filter default,$(PRESET)),figures,figures/$(PRESET))
 REPORT ?= $(if $(filter default,$(PRESET)),paper/REPRODUCTION.md,$(FIGURES)/REPRODUCTION.md)
 EXECUTED := notebooks/executed/$(PRESET)
-ENSEMBLE_ARGS := $(if $(SCHEDULER),--scheduler $(SCHEDULER)) $(if $(WORKERS),--workers $(WORKERS))
+else
+DATA ?= data/$(PRESET)-$(VARIANT)
+FIGURES ?= figures/$(if $(filter default,$(PRESET)),,$(PRESET)/)$(VARIANT)
+REPORT ?= $(FIGURES)/REPRODUCTION.md
+EXECUTED := notebooks/executed/$(PRESET)-$(VARIANT)
+endif
 
-figures: setup
+NOTEBOOKS := $(wildcard notebooks/fig*.ipynb)
+FIG_JSON := $(patsubst notebooks/%.ipynb,$(FIGURES)/%.json,$(NOTEBOOKS))
+# what every figure reads besides its own notebook and module
+FIG_COMMON := $(wildcard src/tiltpile/figures/style.py src/tiltpile/figures/data.py \
+                         src/tiltpile/figures/__init__.py src/tiltpile/analysis/*.py)
+ENSEMBLE_ARGS := $(if $(SCHEDULER),--scheduler $(SCHEDULER)) $(if $(WORKERS),--workers $(WORKERS)) \
+                 $(foreach kv,$(SET),--set $(kv))
+# notebooks/run_diagnostics.ipynb, if present: executed on the first run of the ensemble
+# (parameters run_file, data_dir, preset, figures_dir); its pictures are not figures of the paper
+# nor a regression baseline, so they go beside the executed notebooks
+DIAGNOSTICS := $(if $(wildcard notebooks/run_diagnostics.ipynb),$(EXECUTED)/diagnostics/.executed)
+# a file is rewritten only when its new content differs, so that its dependents rebuild only then
+define update_if_changed
+if cmp -s $(1).tmp $(1); then rm -f $(1).tmp; else mv -f $(1).tmp $(1); fi
+endef
+
+figures: $(FIG_JSON) $(REPORT) $(DIAGNOSTICS)
+
+# The runs and their observables. Always checked (the ensemble skips finished runs); the stamp
+# lists every run file's name, size and time and changes only when a run does.
+$(DATA)/.runs: FORCE | $(STAMP)
 	@test -n "$(RUNS)" || { echo "unknown PRESET=$(PRESET): give RUNS=M"; exit 2; }
+ifeq ($(strip $(SET)),)
+	$(PY) -m tiltpile ensemble --preset $(PRESET) --runs $(RUNS) --out $(BASE_DATA) $(ENSEMBLE_ARGS)
+ifneq ($(DATA),$(BASE_DATA))
+	@mkdir -p $(DATA) && for f in $(BASE_DATA)/run_*.h5; do ln -sfn ../$(PRESET)/$$(basename $$f) $(DATA)/; done
+endif
+else
 	$(PY) -m tiltpile ensemble --preset $(PRESET) --runs $(RUNS) --out $(DATA) $(ENSEMBLE_ARGS)
-	$(PY) -m tiltpile observables $(DATA)
-	@mkdir -p $(EXECUTED) $(FIGURES)
-	@for nb in $(NOTEBOOKS); do \
-	  out=$(EXECUTED)/$$(basename $$nb); \
-	  echo "papermill $$nb -> $$out"; \
-	  $(PY) -m papermill --kernel tiltpile --cwd $(CURDIR) --no-progress-bar $$nb $$out \
-	    -p data_dir $(DATA) -p preset $(PRESET) -p figures_dir $(FIGURES) \
-	    || { echo "papermill failed: $$nb (output notebook: $$out)"; exit 1; }; \
-	done
-	$(PY) -m tiltpile report --figures $(FIGURES) --out $(REPORT)
+endif
+ifeq ($(strip $(NB)),)
+	$(PY) -m tiltpile observables $(DATA) --quiet > /dev/null
+endif
+	@stat -L -c '%n %s %Y' $(DATA)/run_*.h5 > $@.tmp; $(call update_if_changed,$@)
 
-# `make bench`: the speed x accuracy chart (tiltpile.perfchart; ~15 min on one core): tolerance x
+# the notebook parameters of this build, as a file the figures depend on (beside the executed
+# notebooks, which git ignores)
+PARAMETERS := $(EXECUTED)/.notebook-parameters
+$(PARAMETERS): FORCE
+	@mkdir -p $(@D)
+	@echo 'data_dir=$(DATA) preset=$(PRESET) $(NB)' > $@.tmp; $(call update_if_changed,$@)
+
+# one target per figure: notebooks/figN_<name>.ipynb with src/tiltpile/figures/figN.py
+$(FIGURES)/%.json: notebooks/%.ipynb src/tiltpile/figures/$$(firstword $$(subst _, ,$$*)).py \
+                   $(FIG_COMMON) $(DATA)/.runs $(PARAMETERS) | $(STAMP)
+	@mkdir -p $(EXECUTED) $(FIGURES)
+	@echo "papermill $< -> $(EXECUTED)/$*.ipynb"
+	@$(PY) -m papermill --kernel tiltpile --cwd $(CURDIR) --no-progress-bar $< $(EXECUTED)/$*.ipynb \
+	  -p data_dir $(DATA) -p preset $(PRESET) -p figures_dir $(FIGURES) $(NB) \
+	  || { echo "papermill failed: $< (output notebook: $(EXECUTED)/$*.ipynb)"; exit 1; }
+	@test -f $@ || { echo "$< did not write $@"; exit 1; }
+	@touch $@
+
+$(REPORT): $(FIG_JSON) src/tiltpile/report.py | $(STAMP)
+	$(PY) -m tiltpile report --figures $(FIGURES) --out $@
+
+$(EXECUTED)/diagnostics/.executed: notebooks/run_diagnostics.ipynb $(DATA)/.runs | $(STAMP)
+	@mkdir -p $(EXECUTED) $(@D)
+	$(PY) -m papermill --kernel tiltpile --cwd $(CURDIR) --no-progress-bar $< $(EXECUTED)/run_diagnostics.ipynb \
+	  -p run_file $$(ls $(DATA)/run_*.h5 | head -1) -p data_dir $(DATA) -p preset $(PRESET) -p figures_dir $(@D) \
+	  || { echo "papermill failed: $< (output notebook: $(EXECUTED)/run_diagnostics.ipynb)"; exit 1; }
+	@touch $@
+
+# `make bench`: the speed x accuracy chart (tiltpile.bench.chart; ~15 min on one core): tolerance x
 # time-step sweep on the smoke pile, Pareto plot, scaling in N; CSV, PNG and summary.json in
-# figures/performance/. The single-pile timing stays available: `tiltpile bench --n 1000 --steps 200`.
+# figures/performance/. The single-pile timing: `tiltpile bench --n 1000 --steps 200`.
 bench: setup
 	$(PY) -m tiltpile bench --chart figures/performance
 
