@@ -1,6 +1,6 @@
 """The stability map: every way the method fails, provoked on purpose, and how it is reported.
 
-Simulator (limits in ``config.HealthConfig``, README "Health checks and limits"): a time step too
+Simulator (limits in ``config.HealthConfig``, docs/health.md): a time step too
 large (missed contacts, overlaps), a solver tolerance too loose or an iteration cap too low (creep,
 spurious elasticity), and overlapping grains pushed apart by the gap term. Each must show up as
 per-frame flags in the run file, as one warning at the end of the run, and past a stop limit as a
@@ -236,7 +236,7 @@ def test_iteration_cap_in_an_avalanche():
     d (+34%). With the interleaved sweep this flow hardly depends on the cap down to ~50 sweeps
     (300: 1.181e-3, 100: 1.167e-3, 50: 1.277e-3, 20: 1.338e-3, 10: 1.425e-3 d); with the forward
     sweep, the default before, 50 sweeps already moved its pile 1.9x further. (At the paper
-    scale tol is not reached even at 20 000 sweeps while the pile flows: README, "What still
+    scale tol is not reached even at 20 000 sweeps while the pile flows: docs/performance.md, "What still
     costs".)"""
     cfg = config.load("smoke", overrides=["protocol.checkpoint_every=1"])
     n = cfg.scene.n
