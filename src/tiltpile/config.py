@@ -68,6 +68,13 @@ class SolverConfig:
     deposition_tol: float = _f(1e-4, lo=0.0, lo_open=True, hi=1.0,
                                doc="the same during deposition (only its end state matters)")
     max_iter: int = _f(2000, lo=1, hi=10_000_000, doc="cap on NLGS sweeps per step")
+    # A cap by phase: in a large slide no affordable cap converges a step, and the flow does not
+    # depend on the cap within its chaos (docs/performance.md); before it, it does.
+    max_iter_slide: int = _f(0, lo=0, hi=10_000_000,
+                             doc="cap on NLGS sweeps per tilt step while the last frame's kinetic "
+                                 "energy per grain exceeds slide_ke; 0: max_iter throughout")
+    slide_ke: float = _f(1e-3, lo=0.0, lo_open=True,
+                         doc="kinetic energy per mobile grain [m g d] above which max_iter_slide applies")
     # interleaved: the forward (key) order with no body twice within 8 places (sim/solver.py);
     # the same sweeps per step as forward, 1.36-1.65x less time per sweep (perf/solver_micro)
     sweep: str = _f("interleaved", choices=("alternating", "random", "forward", "interleaved"),
@@ -180,7 +187,8 @@ class HealthConfig:
 
 # (section, key) -> the default at which the key is left out of the canonical JSON (Config.to_json)
 LATER_KEYS = {("protocol", "pretilt_deg"): (), ("protocol", "end_ke"): 0.0,
-              ("protocol", "end_span_deg"): 1.0}
+              ("protocol", "end_span_deg"): 1.0, ("solver", "max_iter_slide"): 0,
+              ("solver", "slide_ke"): 1e-3}
 
 SECTIONS = {"scene": SceneConfig, "solver": SolverConfig, "protocol": ProtocolConfig,
             "health": HealthConfig}

@@ -140,3 +140,23 @@ def test_without_the_rule_the_ramp_goes_to_theta_max(pretilted):
     cfg, events = pretilted
     (end,) = _of(events, protocol.Ended)
     assert end.reason == "theta_max" and end.theta_deg == pytest.approx(cfg.protocol.theta_max_deg)
+
+
+def test_slide_cap_applies_only_after_a_frame_above_slide_ke():
+    """solver.max_iter_slide caps the steps that follow a frame whose kinetic energy per grain
+    exceeds solver.slide_ke; the frames before the first such frame are those of the plain run."""
+    over = TINY + ["protocol.theta_max_deg=30.0", "solver.max_iter=1000", "solver.slide_ke=1e-4"]
+    plain = _of(_events(config.load("smoke", overrides=over), 1), protocol.Frame)
+    cfg = config.load("smoke", overrides=over + ["solver.max_iter_slide=50"])
+    capped = _of(_events(cfg, 1), protocol.Frame)
+    n_mob = int((~protocol.make_system(cfg, 1).fixed).sum())
+    fast = [f.ke / n_mob > 1e-4 for f in plain]
+    first = fast.index(True)
+    for a, b in zip(plain[: first + 1], capped[: first + 1]):
+        np.testing.assert_array_equal(a.position, b.position)
+    assert max(f.max_iterations for f in plain[first + 1:]) > 50, "the plain run never needed more"
+    sliding = [f.ke / n_mob > 1e-4 for f in capped]
+    after = [f for prev, f in zip(sliding, capped[1:]) if prev]
+    assert after and all(f.max_iterations <= 50 for f in after)
+    before = [f for prev, f in zip(sliding, capped[1:]) if not prev]
+    assert any(f.max_iterations > 50 for f in before)

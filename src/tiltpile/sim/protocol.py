@@ -225,6 +225,7 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Pr
     sc = sysm.scalars
     sc.setdefault("end_above", 0)  # checkpoints written before the end-of-run rule
     sc.setdefault("end_reason", "theta_max")
+    sc.setdefault("sliding", False)  # ... and before the slide cap
     proto, dt, health = config.protocol, config.solver.dt, config.health
     n_mobile = int((~sysm.fixed).sum())
     last_caps = None
@@ -283,6 +284,8 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Pr
     while sc["phase"] == "tilt" and sc["tilt_step"] < total:
         k = min(proto.frame_every, total - sc["tilt_step"])
         theta0 = sc["tilt_step"] * proto.tilt_per_step_deg
+        slide_cap = config.solver.max_iter_slide > 0 and sc["sliding"]
+        sysm.params["max_iter"] = config.solver.max_iter_slide if slide_cap else config.solver.max_iter
         rec = sysm.advance(k, theta0, proto.tilt_per_step_deg)
         sc["step"] += k
         sc["tilt_step"] += k
@@ -293,6 +296,7 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Pr
             frame = _frame(sysm, proto, dt, rec)
             yield frame
             sc["frame"] += 1
+            sc["sliding"] = bool(frame.ke / n_mobile > config.solver.slide_ke)
             if proto.end_ke > 0:
                 sc["end_above"] = sc["end_above"] + 1 if frame.ke / n_mobile > proto.end_ke else 0
                 if sc["end_above"] >= span_frames:
