@@ -70,7 +70,7 @@ FIG_JSON := $(patsubst notebooks/%.ipynb,$(FIGURES)/%.json,$(NOTEBOOKS))
 FIG_COMMON := $(wildcard src/tiltpile/figures/style.py src/tiltpile/figures/data.py \
                          src/tiltpile/figures/__init__.py src/tiltpile/analysis/*.py)
 ENSEMBLE_ARGS := $(if $(SCHEDULER),--scheduler $(SCHEDULER)) $(if $(WORKERS),--workers $(WORKERS)) \
-                 $(foreach kv,$(SET),--set $(kv))
+                 $(foreach kv,$(SET),--set '$(kv)')
 # notebooks/run_diagnostics.ipynb, if present: executed on the first run of the ensemble
 # (parameters run_file, data_dir, preset, figures_dir); its pictures are not figures of the paper
 # nor a regression baseline, so they go beside the executed notebooks
