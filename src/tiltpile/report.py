@@ -269,12 +269,15 @@ def _cutoff_in_gap(n: dict):
     ms = ", ".join(_f(10 ** _num(m), ".2%") if m is not None else "n/a" for m in means)
     ours = (f"population means at {ms} lost; density at the {_f(_num(n.get('cutoff')), '.0%')} "
             f"cutoff {_f(ratio, '.2f')} of the lower peak")
-    ok = bool(between)
+    ok = bool(between) and ratio < 1.0
     note = "" if ok or between is None else (
-        f"the gap between our two populations is at {_f(_num(b.get('valley')), '.2%')} (frames "
-        "losing one or two contacts against frames losing tens), and the 2% cutoff cuts through "
-        "the upper population instead of lying in the gap: at 1000 grains 2% is ~36 contacts, and "
-        "precursor rearrangements of the top layers lose that many.")
+        f"the gap between our two populations is at {_f(_num(b.get('valley')), '.2%')} lost, and "
+        "the 2% cutoff is not in it: "
+        + ("it lies beyond both population means, on the far side of the upper one (at 1000 "
+           "grains 2% is ~36 contacts, and precursor rearrangements of the top layers lose that "
+           "many)." if not between else
+           "it lies between the means but where the density is higher than at the lower peak, "
+           "i.e. inside the upper population rather than in the valley."))
     return ours, _verdict(ok, between is not None), note
 
 
@@ -451,8 +454,8 @@ RULES: dict[str, Rule] = {
     "cutoff_in_gap": Rule("\"The good separation between the two populations allows us to apply a cutoff "
                           "of a maximum of 2%\"",
                           "agrees if the 2% cutoff lies between the means of the two fitted "
-                          "populations; the density at the cutoff relative to the lower peak and the "
-                          "valley are reported."),
+                          "populations and the fitted density there is below that of the lower of "
+                          "the two peaks (the cutoff is in the valley, not on a population)."),
     "orientation": Rule("clusters align at \"roughly 60 deg\" to gravity",
                         "mean angle of the long axis of clusters of >= 5 grains to gravity; agrees "
                         "within 10 deg (\"roughly\")."),

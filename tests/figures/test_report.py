@@ -100,6 +100,12 @@ def test_onset_claims_compare_like_with_like(tmp_path):
     assert v["robust"] == "agrees" and v["z_mean"] == "agrees"
     v, _ = _verdicts(tmp_path, [_fig2(theta_slide_per_run=[15.0, 15.5, 16.0, None])])
     assert v["theta_slide"] == "disagrees"
+    # the cutoff between the means but on the upper population's peak is not in the gap
+    bm = dict(_fig2()["numbers"]["lost_bimodality"], cutoff_between_means=True)
+    v, _ = _verdicts(tmp_path, [_fig2(lost_bimodality=dict(bm, cutoff_density_ratio=1.9))])
+    assert v["cutoff_in_gap"] == "disagrees"
+    v, _ = _verdicts(tmp_path, [_fig2(lost_bimodality=dict(bm, cutoff_density_ratio=0.2))])
+    assert v["cutoff_in_gap"] == "agrees"
     # onsets without partners: the median move is "more than 10 frames"
     v, _ = _verdicts(tmp_path, [_fig2(onset_shift_median_frames=None)])
     assert v["robust"] == "disagrees"
