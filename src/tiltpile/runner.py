@@ -90,6 +90,7 @@ def _simulate(config, seed, out, progress, resume, position, on_progress) -> dic
                 writer.write_preparation(ev.legs)
             elif isinstance(ev, protocol.Ended):
                 writer.write_end(ev)
+                ended = ev
             elif isinstance(ev, protocol.Progress):
                 bar.update(ev)
                 if on_progress is not None:
@@ -118,6 +119,8 @@ def _simulate(config, seed, out, progress, resume, position, on_progress) -> dic
         warnings.warn(message, RuntimeWarning, stacklevel=2)
     return dict(path=str(path), seed=seed, seconds=time.perf_counter() - t0,
                 resumed_from_frame=start_frame if resumed is not None else None,
+                end_reason=ended.reason, end_theta_deg=ended.theta_deg, steps=ended.steps,
+                sweeps=ended.sweeps, capped_steps=ended.capped_steps,
                 cap_hits=report["cap_hits"], missed=report["missed_steps"],
                 max_overlap=report["max_overlap"], health=report)
 

@@ -32,7 +32,8 @@ Layout (F frames, N grains including the fixed bottom row, C contacts over all f
     /deposition           attrs: steps, time, ke_per_grain, height, max_overlap, missed
     /preparation          attrs (only with protocol.pretilt_deg): target_deg, tilt_steps,
                           hold_steps, ke_per_grain, one entry per leg
-    / attrs end_reason, end_theta_deg: "theta_max" or "slide" (protocol.end_ke), last frame's angle
+    / attrs end_reason, end_theta_deg: "theta_max" or "slide" (protocol.end_ke), last frame's angle;
+            steps, sweeps, capped_steps: the whole run's time steps, NLGS sweeps and capped steps
     /health               attrs (complete runs): the health summary of ``runner.simulate`` --
                           counts of flagged frames and steps, worst values, and ``warnings``
                           (JSON list of the warning texts, empty when healthy)
@@ -382,8 +383,11 @@ class RunWriter:
             g.attrs[key] = np.array([leg[key] for leg in legs])
 
     def write_end(self, ended) -> None:
-        """How the tilt ended (``protocol.Ended``): root attrs end_reason, end_theta_deg."""
-        self.f.attrs.update(end_reason=str(ended.reason), end_theta_deg=float(ended.theta_deg))
+        """How the tilt ended and what the run cost (``protocol.Ended``): root attrs end_reason,
+        end_theta_deg, steps, sweeps, capped_steps."""
+        self.f.attrs.update(end_reason=str(ended.reason), end_theta_deg=float(ended.theta_deg),
+                            steps=int(ended.steps), sweeps=int(ended.sweeps),
+                            capped_steps=int(ended.capped_steps))
 
     def frame_columns(self, names) -> dict:
         """Per-frame scalar columns written so far (e.g. for the health summary at the end)."""
@@ -638,6 +642,8 @@ class Run:
         prep = self.f.get("preparation")
         self.preparation = {k: np.asarray(v) for k, v in prep.attrs.items()} if prep is not None else {}
         self.end_reason = str(a.get("end_reason", "theta_max"))  # files before the end-of-run rule
+        # the run's solver work (files before it was counted: absent)
+        self.cost = {k: int(a[k]) for k in ("steps", "sweeps", "capped_steps") if k in a}
         h = self.f.get("health")
         self.health = {k: json.loads(v) if k == "warnings" else v
                        for k, v in (h.attrs.items() if h is not None else ())}

@@ -77,11 +77,18 @@ def test_pretilt_killed_during_a_leg_resumes_bit_identically(pretilted):
 
 def test_pretilt_history_is_recorded_in_the_run_file(tmp_path):
     cfg = config.load("smoke", overrides=PRETILT)
-    simulate(cfg, 2, tmp_path / "r.h5", progress=False)
+    summary = simulate(cfg, 2, tmp_path / "r.h5", progress=False)
     with open_run(tmp_path / "r.h5") as run:
         np.testing.assert_array_equal(run.preparation["target_deg"], [10.0, -10.0, 0.0])
         np.testing.assert_array_equal(run.preparation["tilt_steps"], [1000, 2000, 1000])
         assert run.theta_deg[0] == 0.0 and run.end_reason == "theta_max"
+        # the run's cost: every step counted, deposition and preparation included
+        prep = int(run.preparation["tilt_steps"].sum() + run.preparation["hold_steps"].sum())
+        tilt = round(cfg.protocol.theta_max_deg / cfg.protocol.tilt_per_step_deg)
+        steps = run.deposition["steps"] + prep + cfg.protocol.rest_steps + tilt
+        assert run.cost["steps"] == summary["steps"] == steps == int(run.step[-1])
+        assert run.cost["sweeps"] == summary["sweeps"] >= steps
+        assert 0 <= run.cost["capped_steps"] == summary["capped_steps"] <= steps
 
 
 @pytest.mark.parametrize("value, field", [("[95.0, 0.0]", "protocol.pretilt_deg[0]"),

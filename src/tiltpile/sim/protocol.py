@@ -102,6 +102,9 @@ class Ended:
     reason: str            # "theta_max" (the ramp reached theta_max_deg) or "slide" (protocol.end_ke)
     theta_deg: float       # the angle of the last frame
     frames: int            # frames the run holds
+    steps: int = 0         # time steps of the whole run (deposition and preparation included)
+    sweeps: int = 0        # NLGS sweeps of all those steps: the run's cost in solver work
+    capped_steps: int = 0  # steps that stopped at the iteration cap
 
 
 @dataclass
@@ -240,7 +243,7 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Pr
                 f"deposition not at rest after {sc['deposition_steps']} steps (limit protocol.max_deposition_steps = {proto.max_deposition_steps}, checked every {DEPOSITION_CHUNK} steps) "
                 f"(kinetic energy per grain {_ke(sysm) / n_mobile:.3g} > rest_ke {proto.rest_ke:g}"
                 f"{caps}); raise protocol.max_deposition_steps or rest_ke")
-        rec = sysm.advance(DEPOSITION_CHUNK, 0.0, 0.0)
+        rec = _advance(sysm, DEPOSITION_CHUNK, 0.0, 0.0)
         sc["step"] += DEPOSITION_CHUNK
         sc["deposition_steps"] += DEPOSITION_CHUNK
         sc["rebuilds"] += rec.rebuilds
@@ -270,7 +273,7 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Pr
     if sc["phase"] == "settle":
         # frame 0: the deposited (or prepared) pile brought to the tilt tolerance, rest_steps steps
         # at theta = 0
-        rec = sysm.advance(proto.rest_steps, 0.0, 0.0)
+        rec = _advance(sysm, proto.rest_steps, 0.0, 0.0)
         sc["step"] += proto.rest_steps
         _check_health(sysm, rec, health, n_mobile, "settle")
         _check_sane(sysm, config.scene.box_length)
@@ -286,7 +289,7 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Pr
         theta0 = sc["tilt_step"] * proto.tilt_per_step_deg
         slide_cap = config.solver.max_iter_slide > 0 and sc["sliding"]
         sysm.params["max_iter"] = config.solver.max_iter_slide if slide_cap else config.solver.max_iter
-        rec = sysm.advance(k, theta0, proto.tilt_per_step_deg)
+        rec = _advance(sysm, k, theta0, proto.tilt_per_step_deg)
         sc["step"] += k
         sc["tilt_step"] += k
         sc["rebuilds"] += rec.rebuilds
@@ -308,7 +311,17 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Pr
         if sc["phase"] == "done" or (sc["frame"] - 1) % proto.checkpoint_every == 0:
             yield Checkpoint(sysm.state())
     yield Ended(sc["end_reason"], sc["tilt_step"] // proto.frame_every * proto.frame_every
-                * proto.tilt_per_step_deg, sc["frame"])
+                * proto.tilt_per_step_deg, sc["frame"], sc["step"], sc.get("sweeps", 0),
+                sc.get("capped_steps", 0))
+
+
+def _advance(sysm: System, k: int, theta0_deg: float, dtheta_deg: float):
+    """``sysm.advance``, counting the sweeps and capped steps of the run in its scalars."""
+    rec = sysm.advance(k, theta0_deg, dtheta_deg)
+    sc = sysm.scalars
+    sc["sweeps"] = sc.get("sweeps", 0) + int(rec.iterations.sum())
+    sc["capped_steps"] = sc.get("capped_steps", 0) + int((rec.iterations >= sysm.params["max_iter"]).sum())
+    return rec
 
 
 def _pretilt_chunk(sysm: System, config, n_mobile: int):
@@ -322,7 +335,7 @@ def _pretilt_chunk(sysm: System, config, n_mobile: int):
         d = (target - start) / n_leg  # the last step lands on the target
         k = min(DEPOSITION_CHUNK, n_leg - sc["leg_step"])
         theta0 = start + sc["leg_step"] * d
-        rec = sysm.advance(k, theta0, d)
+        rec = _advance(sysm, k, theta0, d)
         sc["leg_step"] += k
         where = (theta0, d)
     else:
@@ -332,7 +345,7 @@ def _pretilt_chunk(sysm: System, config, n_mobile: int):
                 f"pretilt leg {sc['leg']} (to {target:g} deg) not at rest after holding "
                 f"{sc['hold_steps']} steps (kinetic energy per grain {_ke(sysm) / n_mobile:.3g} > "
                 f"rest_ke {proto.rest_ke:g}); raise protocol.max_deposition_steps or rest_ke")
-        rec = sysm.advance(k, target, 0.0)
+        rec = _advance(sysm, k, target, 0.0)
         sc["hold_steps"] += k
         for quiet in rec.ke / n_mobile < proto.rest_ke:
             sc["rest_count"] = sc["rest_count"] + 1 if quiet else 0
