@@ -97,3 +97,22 @@ def test_info_on_a_part_file_and_a_bad_run_in_a_directory(tiny_run, tmp_path, ca
     out = capsys.readouterr().out
     assert "run_0005.h5" in out and "unreadable: not a readable HDF5 file" in out
     assert "manifest   none" in out
+
+
+def test_ensemble_onsets_come_from_the_observables_cache(tiny_ensemble, tmp_path, capsys):
+    import shutil
+
+    from tiltpile.analysis import compute_observables, load_observables
+
+    ens = tmp_path / "ens"
+    shutil.copytree(tiny_ensemble, ens)
+    compute_observables(ens, workers=1, progress=False)
+    frames, _ = load_observables(ens, compute_missing=False)
+    assert main(["info", str(ens)]) == 0
+    rows = {ln.split()[0]: ln.split() for ln in capsys.readouterr().out.splitlines()
+            if ln.startswith("run_") and ".part" not in ln}
+    for seed, g in frames.groupby("run"):
+        on = g["onset"].to_numpy(bool)
+        row = rows[f"run_{seed:04d}.h5"]
+        assert int(row[5]) == on.sum()
+        assert row[6] == (f"{g['theta_deg'].to_numpy()[on][0]:.2f}" if on.any() else "-")

@@ -1,11 +1,12 @@
 """One-screen summaries of a run file (:func:`run_info`) and of an ensemble directory
 (:func:`dir_info`), as text.
 
-A run: the configuration as TOML (complete: ``tiltpile simulate --config FILE`` with it reproduces
-the run's configuration hash), seed, version, grains, frames, theta range, the deposition and
-health summaries stored in the file, the first onsets by the lost-contact criterion (the paper's:
-a frame losing more than ``cutoff`` of its active contacts before the next one, computed with
-:mod:`tiltpile.analysis`), whether the run is complete, and its size on disk.
+A run: the configuration as TOML (every key, defaults included: ``tiltpile simulate --config
+FILE`` with it reproduces the run's configuration hash whatever the preset), seed, version,
+grains, frames, theta range, the deposition and health summaries stored in the file, the first
+onsets by the lost-contact criterion (the paper's: a frame losing more than ``cutoff`` of its
+active contacts before the next one, computed with :mod:`tiltpile.analysis`), whether the run is
+complete, and its size on disk.
 
 A directory: one line per run file (``run_*.h5``, and any ``.part`` still being written or
 interrupted), then the manifest ``ensemble.json`` (configuration hash, versions, run statuses).
@@ -152,6 +153,19 @@ def _part_line(path: Path) -> str:
             "interrupted; `tiltpile simulate` with the same configuration and seed resumes it")
 
 
+def complete_config(config: dict) -> dict:
+    """Every key of the configuration, the ones a run file leaves out at their defaults included
+    (``config.LATER_KEYS`` are stored only when set), so that the TOML of :func:`config_toml`
+    reproduces the run over any preset. A configuration this version cannot validate (a run of
+    another version) is returned as stored."""
+    from tiltpile import config as cfgmod
+
+    try:
+        return cfgmod.from_dict(config).to_dict()
+    except (cfgmod.ConfigError, TypeError, ValueError):
+        return config
+
+
 def run_summary(path, with_onsets: bool = True, progress: bool = False) -> dict:
     """The facts :func:`run_info` prints, as a dict (also one line of :func:`dir_info`)."""
     path = Path(path)
@@ -220,7 +234,7 @@ def run_info(path, progress: bool = False) -> str:
     out.append("")
     out.append("# configuration (reuse: tiltpile simulate --config FILE.toml --seed "
                f"{s['seed']} --out RUN.h5)")
-    out.append(config_toml(cfg).rstrip())
+    out.append(config_toml(complete_config(cfg)).rstrip())
     return "\n".join(out)
 
 
