@@ -13,10 +13,12 @@ nothing when imported (``python -m tiltpile.bench`` lists them):
 ``flow_caps``          the iteration cap in a flowing pile, from a frame of a run
 ``precursor_caps``     the iteration cap between precursor events, from frames of a run
 ``compare_ensembles``  onset, z and n_m of ensembles that differ in one setting
+``guard``              what a cheaper setting costs against how far it moves the figure numbers
+``store_filters``      size and time of the run file's checksums and of compression
 
 Measurement code sits beside the command line: it imports ``config``, ``sim``, ``store`` and
 ``analysis``, never ``figures`` or ``cli`` (``tests/test_layers.py``).
 """
 
 STUDIES = ("pile", "timing", "chart", "solver_micro", "solver_variants", "flow_caps",
-           "precursor_caps", "compare_ensembles")
+           "precursor_caps", "compare_ensembles", "guard", "store_filters")
