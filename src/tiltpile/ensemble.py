@@ -22,7 +22,9 @@ run's ``health`` summary with its ``warnings`` (``tiltpile.health``), ``numba_ca
 ``tiltpile_version`` and library ``versions``, and one entry per invocation in ``invocations``.
 
 Idempotent and resumable. A seed whose complete run file exists and passes ``store.verify``
-(layout and every checksum) is skipped; one that fails is moved aside to ``run_SSSS.h5.damaged``
+(layout and every checksum; the manifest records the size and mtime of a file found sound as
+``verified``, and an unchanged file is not read again: a flipped bit on disk that leaves them is
+still caught by the checksums when the file is read) is skipped; one that fails is moved aside to ``run_SSSS.h5.damaged``
 (saying so on stderr) and run again. Anything else is
 (re)submitted: an interrupted run resumes from its checkpoint (``run_SSSS.h5.ckpt`` beside the
 ``.part`` file) and ends
@@ -146,11 +148,13 @@ def read_manifest(out_dir: str | Path) -> dict | None:
 
 
 def _check_dir(config: Config, out_dir: Path, damaged: dict | None = None,
-               seeds=()) -> dict | None:
+               seeds=(), verified: dict | None = None) -> dict | None:
     """Refuse a directory holding another configuration's ensemble; return its manifest if any.
 
     The run files of ``seeds`` are verified completely (``store.verify``); those that fail go
-    into ``damaged`` (path -> first problem) instead of being refused."""
+    into ``damaged`` (path -> first problem) instead of being refused. ``verified`` (file name ->
+    [size, mtime_ns] of files already found sound, from the manifest or an earlier pass) spares
+    re-reading an unchanged file; files found sound are added to it."""
     if out_dir.exists() and not out_dir.is_dir():
         raise ConfigError(f"--out {out_dir} exists and is not a directory")
     if not out_dir.exists():
@@ -180,9 +184,15 @@ def _check_dir(config: Config, out_dir: Path, damaged: dict | None = None,
                     continue
                 raise ConfigError(f"{e}; move it away to run an ensemble in {out_dir}") from None
             if other == h and damaged is not None and path.name in mine:
+                st = path.stat()
+                stamp = [st.st_size, st.st_mtime_ns]
+                if verified is not None and verified.get(path.name) == stamp:
+                    continue  # read in full and found sound, unchanged since
                 problems = verify(path)
                 if problems:
                     damaged[path] = f"{path}: {problems[0]}"
+                elif verified is not None:
+                    verified[path.name] = stamp
             if other != h:
                 raise ConfigError(f"{path} is a run of another configuration (hash {other[:12]}, this one "
                                   f"{h[:12]}): use another --out directory; nothing was changed")
@@ -239,7 +249,8 @@ class _Manifest:
                 raise write_error(e, self.path) from None
 
 
-def _merge_manifest(old: dict | None, config: Config, seeds: list[int], out_dir: Path) -> dict:
+def _merge_manifest(old: dict | None, config: Config, seeds: list[int], out_dir: Path,
+                    verified: dict | None = None) -> dict:
     m = old or {"format": FORMAT, "config_hash": config.hash(), "config": json.loads(config.to_json()),
                 "seeds": [], "runs": {}, "created": _now(), "invocations": []}
     m["tiltpile_version"] = tiltpile.__version__
@@ -250,6 +261,8 @@ def _merge_manifest(old: dict | None, config: Config, seeds: list[int], out_dir:
     for s in seeds:
         r = m["runs"].setdefault(str(s), _new_run(s))
         remove_stale_checkpoint(run_file(out_dir, s))  # a kill between the rename and its removal
+        if verified and run_file(out_dir, s).name in verified:
+            r["verified"] = verified[run_file(out_dir, s).name]  # [size, mtime_ns] found sound
         if run_file(out_dir, s).exists():
             r["status"] = "done"
         elif r["status"] != "pending":  # running (interrupted) or failed: try again
@@ -401,7 +414,8 @@ def run_ensemble(config: Config, seeds, out_dir: str | Path, *, scheduler=None, 
         raise ConfigError(f"--workers must be a positive integer, got {workers!r}")
     out_dir = Path(out_dir)
     damaged: dict = {}
-    old = _check_dir(config, out_dir, damaged, seeds)
+    verified = _verified(out_dir)
+    old = _check_dir(config, out_dir, damaged, seeds, verified)
     todo = [s for s in seeds if not run_file(out_dir, s).exists() or run_file(out_dir, s) in damaged]
     recorded = old is not None and all(old["runs"].get(str(s), {}).get("status") == "done" for s in seeds)
     if not todo and recorded:
@@ -416,9 +430,9 @@ def run_ensemble(config: Config, seeds, out_dir: str | Path, *, scheduler=None, 
         out_dir.mkdir(parents=True, exist_ok=True)
         stack.enter_context(_dir_lock(out_dir))
         damaged = {}
-        old = _check_dir(config, out_dir, damaged, seeds)  # again, now that we hold the lock
+        old = _check_dir(config, out_dir, damaged, seeds, verified)  # again, now that we hold the lock
         _move_aside(damaged)
-        man = _Manifest(out_dir / MANIFEST, _merge_manifest(old, config, seeds, out_dir))
+        man = _Manifest(out_dir / MANIFEST, _merge_manifest(old, config, seeds, out_dir, verified))
         todo = [s for s in seeds if man.run(s)["status"] != "done"]
         invocation = {"started": started, "engine": engine, "seeds": todo}
         man.data["invocations"].append(invocation)
@@ -433,6 +447,32 @@ def run_ensemble(config: Config, seeds, out_dir: str | Path, *, scheduler=None, 
             man.save()
     _report(man.data, seeds, progress, out_dir)
     return man.data
+
+
+def _verified(out_dir: Path) -> dict:
+    """File name -> [size, mtime_ns] of the run files the manifest records as read in full and found
+    sound (``verified``); a file changed since (size or mtime) is verified again."""
+    try:
+        m = read_manifest(out_dir) if out_dir.is_dir() else None
+    except ConfigError:
+        return {}
+    return {r["file"]: r["verified"] for r in (m or {}).get("runs", {}).values()
+            if isinstance(r, dict) and isinstance(r.get("verified"), list) and "file" in r}
+
+
+def _verify_new(r: dict, path: Path) -> None:
+    """Read a run file just finished in full (from the page cache, as a rule) and record it as
+    ``verified`` ([size, mtime_ns]), or the run as failed if it is already damaged."""
+    if r["status"] != "done" or not path.exists():
+        return
+    from tiltpile.store import verify
+
+    problems = verify(path)
+    if problems:
+        r.update(status="failed", error=f"{path}: {problems[0]} (right after it was written)")
+        return
+    st = path.stat()
+    r["verified"] = [st.st_size, st.st_mtime_ns]
 
 
 def _move_aside(damaged: dict) -> None:
@@ -491,6 +531,7 @@ def _execute(client, config: Config, todo: list[int], out_dir: Path, man: _Manif
             for fut in finished:
                 s = futures[fut]
                 _record(man.run(s), fut)
+                _verify_new(man.run(s), run_file(out_dir, s))
                 angles.pop(s, None)
                 r = man.run(s)
                 line = (f"seed {s}: done in {r['seconds']:.1f} s" if r["status"] == "done"

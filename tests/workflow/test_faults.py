@@ -248,6 +248,16 @@ def test_ensemble_moves_a_damaged_run_aside_and_runs_it_again(tmp_path, tiny, re
     assert (d / "run_0003.h5.damaged").exists()
     assert store.verify(d / "run_0003.h5") == []
     assert_same_run(d / "run_0003.h5", ref)
+    # found sound once, recorded by size and mtime: not read again while unchanged ...
+    run_ensemble(tiny, [3], d, workers=1, progress=False)
+    stamp = json.loads((d / "ensemble.json").read_text())["runs"]["3"]["verified"]
+    assert stamp == [(d / "run_0003.h5").stat().st_size, (d / "run_0003.h5").stat().st_mtime_ns]
+    # ... and read again once changed
+    (d / "run_0003.h5.damaged").unlink()
+    _flip(d / "run_0003.h5", "frames/position", (3, 0, 0))
+    m = run_ensemble(tiny, [3], d, workers=1, progress=False)
+    assert m["runs"]["3"]["status"] == "done" and (d / "run_0003.h5.damaged").exists()
+    assert_same_run(d / "run_0003.h5", ref)
 
 
 # -- 4. one configuration per directory -------------------------------------------------------------
