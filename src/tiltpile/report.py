@@ -552,6 +552,14 @@ def scale_dirs(figures_dir) -> dict[str, Path]:
     return {name: (root / sub if sub else root) for name, sub in SCALES}
 
 
+def _gap_text(b: dict) -> str:
+    between, ratio = b.get("cutoff_between_means"), _num(b.get("cutoff_density_ratio"))
+    if between is None:
+        return "n/a"
+    where = "between the means" if between else "beyond both means"
+    return f"{'yes' if between and ratio < 1.0 else 'no'} ({_f(ratio, '.2f')}, {where})"
+
+
 def _scale_rows(n2: dict, doc: dict | None) -> dict[str, str]:
     if doc is None:
         return {}
@@ -570,8 +578,10 @@ def _scale_rows(n2: dict, doc: dict | None) -> dict[str, str]:
         "frames losing no contact": _f(_num(n.get("lost_zero_fraction")), ".0%"),
         "Ashman D / valley depth": f"{_f(_num(b.get('ashman_d')), '.1f')} / {_f(_num(b.get('valley_depth')), '.2f')}",
         "valley at (lost fraction)": _f(_num(b.get("valley")), ".2%"),
-        "2% cutoff between the populations": {True: "yes", False: "no"}.get(b.get("cutoff_between_means"), "n/a"),
+        "cutoff in the gap (density there / lower peak)": _gap_text(b),
         "<z> quiet": _ci(n, "z_quiet_run_mean", ".3f"),
+        "<n_m> quiet": _ci(n, "n_m_quiet_run_mean", ".3f"),
+        "quiet frames below the line": _ci(n, "quiet_below_run_mean", ".1%"),
     }
 
 

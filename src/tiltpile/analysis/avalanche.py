@@ -305,9 +305,9 @@ def first_slide(theta_deg, ke_per_grain, threshold: float, sustain_deg: float) -
     ke = np.asarray(ke_per_grain, dtype=float).ravel()
     if theta.shape != ke.shape:
         raise ValueError(f"first_slide: theta_deg {theta.shape} and ke_per_grain {ke.shape} differ")
-    if not np.isfinite(threshold) or not sustain_deg >= 0:
-        if not sustain_deg >= 0:
-            raise ValueError(f"first_slide: sustain_deg must be >= 0, got {sustain_deg}")
+    if not sustain_deg >= 0:
+        raise ValueError(f"first_slide: sustain_deg must be >= 0, got {sustain_deg}")
+    if not np.isfinite(threshold):
         return float("nan")
     with np.errstate(invalid="ignore"):
         above = np.isfinite(ke) & (ke > threshold)
