@@ -64,7 +64,8 @@ process writes, and the lock file is removed by the last holder. (``h5py.File(pa
 truncated the other writer's file before HDF5's own lock refused the open.)
 
 Integrity. A complete run file (root attr ``integrity = "fletcher32"``) has HDF5's Fletcher32
-checksum on every chunk of every dataset: HDF5 checks it on every read, so flipped bytes make a
+checksum on every chunk of every dataset (and ``attrs_sha256``, a SHA-256 over every attribute,
+which ``verify`` checks): HDF5 checks the chunks' checksums on every read, so flipped bytes make a
 read fail (``Run`` turns that into ``RunFileError`` naming the file and the dataset) instead of
 returning wrong numbers. ``verify(path)`` reads every chunk and checks the layout (every dataset
 present, the shapes consistent, ``complete``); ``open_run`` checks the layout, reads check the
@@ -273,6 +274,34 @@ def remove_stale_checkpoint(path: str | Path) -> bool:
     return False
 
 
+ATTRS_DIGEST = "attrs_sha256"  # root attr of complete files: SHA-256 over every attribute
+
+
+def _attrs_digest(f) -> str:
+    """SHA-256 over the attributes of the root and the groups (configuration, seed, deposition,
+    health, ...; names sorted), as read back from the file: metadata, which the datasets'
+    checksums do not cover. (The datasets' ``units`` and ``description`` are checked against
+    ``LAYOUT`` instead.)"""
+    h = hashlib.sha256()
+    objects = [("/", f)]
+    f.visititems(lambda name, obj: objects.append((name, obj)) if isinstance(obj, h5py.Group) else None)
+    for path, obj in sorted(objects, key=lambda t: t[0]):
+        for key in sorted(obj.attrs):
+            if path == "/" and key == ATTRS_DIGEST:
+                continue
+            v = obj.attrs[key]
+            h.update(f"{path}\0{key}\0".encode())
+            if isinstance(v, (str, bytes)):
+                h.update(v.encode() if isinstance(v, str) else v)
+            else:
+                a = np.asarray(v)
+                if a.dtype.kind in "OUS":
+                    h.update(repr(a.tolist()).encode())
+                else:
+                    h.update(f"{a.dtype.str}{a.shape}".encode() + a.tobytes())
+    return h.hexdigest()
+
+
 def _create(group, name: str, **kw):
     """A chunked dataset with the run file's filters and its ``units`` / ``description`` attrs."""
     kw.setdefault("chunks", True)
@@ -473,6 +502,7 @@ class RunWriter:
         """Mark the file complete, sync it and rename it to ``NAME`` (replacing an older run
         file only now, when the new one is whole); then drop the checkpoint and the lock."""
         self.f.attrs["complete"] = True
+        self.f.attrs[ATTRS_DIGEST] = _attrs_digest(self.f)
         self.f.close()
         _fsync(self.part)
         os.replace(self.part, self.path)
@@ -732,6 +762,9 @@ def _layout_problems(f) -> list[str]:
         for name in LAYOUT:
             if name in f and not f[name].fletcher32:
                 problems.append(f"dataset {name} has no checksum (the file says every dataset has one)")
+            elif name in f and f[name].attrs.get("units") != LAYOUT[name][0]:
+                problems.append(f"dataset {name} has units {f[name].attrs.get('units')!r}, "
+                                f"expected {LAYOUT[name][0]!r}")
     return problems
 
 
@@ -801,6 +834,9 @@ def verify(path: str | Path, block_bytes: int = 1 << 26) -> list[str]:
                         ds[a:a + step]
             except OSError as e:
                 problems.append(f"dataset {name} is damaged ({e})")
+        if ATTRS_DIGEST in f.attrs and str(f.attrs[ATTRS_DIGEST]) != _attrs_digest(f):
+            problems.append("the attributes (configuration, seed, deposition, health, ...) changed "
+                            f"since the run was written ({ATTRS_DIGEST} does not match)")
         if "offset" in f.get("contacts", {}) and not problems:
             off = f["contacts/offset"][()]
             if off[0] != 0 or np.any(np.diff(off) < 0) or off[-1] != f["contacts/pair"].shape[0]:

@@ -567,3 +567,15 @@ def test_compute_observables_refuses_mixed_configurations_and_bad_workers(tmp_pa
     with pytest.raises(store.MixedConfigError, match="run_0004.h5 is a run of another configuration"):
         compute_observables(tmp_path, workers=1, progress=False)
     assert not (tmp_path / "observables").exists()
+
+
+@pytest.mark.parametrize("where, key, value", [("/", "seed", 4), ("/", "box_length", 10.5),
+                                               ("/deposition", "steps", 1), ("/health", "cap_hits", 0)])
+def test_changed_attribute_is_found_by_verify(tmp_path, ref, where, key, value):
+    """Attributes are metadata, outside the datasets' checksums: attrs_sha256 covers them."""
+    path = tmp_path / "run_0003.h5"
+    shutil.copy(ref, path)
+    with h5py.File(path, "r+") as f:
+        f[where].attrs[key] = value
+    problems = store.verify(path)
+    assert len(problems) == 1 and "attributes" in problems[0] and store.ATTRS_DIGEST in problems[0]
