@@ -287,3 +287,21 @@ def test_cell_density_2d_spreads_each_sample_over_its_cell_and_has_no_comb():
     assert plain[12:28, 5].std() / plain[12:28, 5].mean() > 0.3    # the comb it removes
     with pytest.raises(st.InsufficientDataError):
         st.cell_density_2d([np.nan], [0.0], [1.0], [1.0], xe, ye)
+
+
+def test_parity_log_edges_balance_odd_and_even_sizes():
+    for s_max in (3, 17, 100, 1000):
+        e = st.parity_log_edges(s_max)
+        assert e[0] == 1 and e[1] == 2 and e[-1] > s_max
+        assert np.all(np.diff(e) > 0) and np.all(e[1:] % 2 == 0)
+        widths = np.diff(e)[1:]                       # every bin after size 1 holds whole pairs
+        assert np.all(widths % 2 == 0)
+
+
+def test_fd_bins_per_decade_follows_the_spread_and_sample_size():
+    rng = np.random.default_rng(1)
+    narrow = 10 ** rng.normal(-3, 0.1, 5000)
+    wide = 10 ** rng.normal(-3, 1.0, 5000)
+    assert st.fd_bins_per_decade(narrow) > st.fd_bins_per_decade(wide)
+    assert st.fd_bins_per_decade(wide, lo=3, hi=20) >= 3
+    assert st.fd_bins_per_decade([1e-3, 1e-3, 1e-3, 1e-3]) == 3      # no spread: the floor
