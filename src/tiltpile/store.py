@@ -166,7 +166,7 @@ _held_lock = threading.Lock()
 
 def _describe_os_error(e: OSError) -> str:
     """'no space left on device' and the like, from an OSError (h5py's included)."""
-    code = e.errno
+    code = getattr(e, "errno", None)
     text = str(e)
     if code is None:
         for c in (errno.ENOSPC, errno.EDQUOT, errno.EACCES, errno.EROFS, errno.EIO):
@@ -393,7 +393,22 @@ class RunWriter:
 
     @property
     def n_frames(self) -> int:
-        return self.f["frames/step"].shape[0]
+        return self._d("frames/step").shape[0]
+
+    def _d(self, name: str):
+        """Dataset ``name``, opened once and kept: an h5py Dataset dropped after a failed write
+        (a full disk) crashes HDF5 when it is deallocated, so the writer creates none on the fly."""
+        cache = self.__dict__.setdefault("_datasets", {})
+        if name not in cache:
+            cache[name] = self.f[name]
+        return cache[name]
+
+    def _failed(self, e: BaseException) -> RunWriteError:
+        """After a failed write: keep the file and its datasets alive, never closed (closing or
+        deallocating them crashes HDF5), and return the one-line error to raise."""
+        self._broken = True
+        _BROKEN.append(self)
+        return write_error(e, self.part)
 
     @property
     def n_mobile(self) -> int:
@@ -450,26 +465,30 @@ class RunWriter:
         self._check_space()
         self._interval_bytes = getattr(self, "_interval_bytes", 0) + sum(
             np.asarray(getattr(frame, name)).nbytes for name in (*FRAME_ARRAYS, *CONTACT_SETS)) + 200
-        fr, c = self.f["frames"], self.f["contacts"]
         k = self.n_frames
         _digest_frame(self.digest, lambda name: getattr(frame, name))
-        for name in FRAME_SCALARS:
-            ds = fr[name]
-            ds.resize((k + 1,))
-            ds[k] = getattr(frame, name)
-        for name in FRAME_ARRAYS:
-            ds = fr[name]
-            ds.resize((k + 1, *ds.shape[1:]))
-            ds[k] = getattr(frame, name)
-        off = c["offset"]
-        start = int(off[k])
-        m = frame.pair.shape[0]
-        for name in CONTACT_SETS:
-            ds = c[name]
-            ds.resize((start + m, *ds.shape[1:]))
-            ds[start:] = getattr(frame, name)
-        off.resize((k + 2,))
-        off[k + 1] = start + m
+        try:
+            for name in FRAME_SCALARS:
+                ds = self._d(f"frames/{name}")
+                ds.resize((k + 1,))
+                ds[k] = getattr(frame, name)
+            for name in FRAME_ARRAYS:
+                ds = self._d(f"frames/{name}")
+                ds.resize((k + 1, *ds.shape[1:]))
+                ds[k] = getattr(frame, name)
+            off = self._d("contacts/offset")
+            start = int(off[k])
+            m = frame.pair.shape[0]
+            for name in CONTACT_SETS:
+                ds = self._d(f"contacts/{name}")
+                ds.resize((start + m, *ds.shape[1:]))
+                ds[start:] = getattr(frame, name)
+            off.resize((k + 2,))
+            off[k + 1] = start + m
+        except (OSError, RuntimeError) as e:
+            if not is_write_failure(e):
+                raise
+            raise self._failed(e) from None
 
     def checkpoint(self, state: dict) -> None:
         """Store the simulator state as of the frames written so far (``NAME.ckpt``, atomically).
@@ -480,30 +499,50 @@ class RunWriter:
         self._check_space()
         self._max_interval = max(getattr(self, "_max_interval", 0), getattr(self, "_interval_bytes", 0))
         self._interval_bytes = 0
-        self.f.flush()
+        try:
+            self.f.flush()
+        except (OSError, RuntimeError) as e:
+            if not is_write_failure(e):
+                raise
+            raise self._failed(e) from None
         _fsync(self.part)
         tmp = self.ckpt.with_name(f".{self.ckpt.name}.tmp{os.getpid()}")
+        g = None
         try:
-            with h5py.File(tmp, "w") as g:
-                for key, value in state.items():
-                    if key == "scalars":
-                        g.attrs["scalars"] = json.dumps(value)
-                    else:
-                        g.create_dataset(key, data=value)
-                g.attrs.update(n_frames=self.n_frames, config_hash=self.f.attrs["config_hash"],
-                               seed=int(self.f.attrs["seed"]), frames_digest=self.digest.hexdigest())
+            g = h5py.File(tmp, "w")
+            for key, value in state.items():
+                if key == "scalars":
+                    g.attrs["scalars"] = json.dumps(value)
+                else:
+                    g.create_dataset(key, data=value)
+            g.attrs.update(n_frames=self.n_frames, config_hash=self.f.attrs["config_hash"],
+                           seed=int(self.f.attrs["seed"]), frames_digest=self.digest.hexdigest())
+            g.close()
             _fsync(tmp)
-        except BaseException:
+        except BaseException as e:
+            if g is not None and g.id.valid:
+                try:
+                    g.close()
+                except (OSError, RuntimeError):
+                    _BROKEN.append(g)  # never closed again (module docstring)
             tmp.unlink(missing_ok=True)
+            if isinstance(e, (OSError, RuntimeError)) and is_write_failure(e) and not isinstance(e, RunFileError):
+                raise write_error(e, tmp) from None
             raise
         os.replace(tmp, self.ckpt)
 
     def finish(self) -> Path:
         """Mark the file complete, sync it and rename it to ``NAME`` (replacing an older run
         file only now, when the new one is whole); then drop the checkpoint and the lock."""
-        self.f.attrs["complete"] = True
-        self.f.attrs[ATTRS_DIGEST] = _attrs_digest(self.f)
-        self.f.close()
+        try:
+            self.f.attrs["complete"] = True
+            self.f.attrs[ATTRS_DIGEST] = _attrs_digest(self.f)
+            self.__dict__.pop("_datasets", None)
+            self.f.close()
+        except (OSError, RuntimeError) as e:
+            if not is_write_failure(e):
+                raise
+            raise self._failed(e) from None
         _fsync(self.part)
         os.replace(self.part, self.path)
         self.ckpt.unlink(missing_ok=True)  # a kill before this leaves it: remove_stale_checkpoint
@@ -526,6 +565,10 @@ class RunWriter:
         file that cannot be flushed any more (a full disk): the resume checks what is on disk."""
         try:
             f = getattr(self, "f", None)
+            if getattr(self, "_broken", False):
+                f = None  # a file whose writes failed is never closed: HDF5 would crash
+            else:
+                self.__dict__.pop("_datasets", None)
             if f is not None and f.id.valid:
                 try:
                     f.close()

@@ -579,3 +579,31 @@ def test_changed_attribute_is_found_by_verify(tmp_path, ref, where, key, value):
         f[where].attrs[key] = value
     problems = store.verify(path)
     assert len(problems) == 1 and "attributes" in problems[0] and store.ATTRS_DIGEST in problems[0]
+
+
+@pytest.mark.skipif(not _can_mount(), reason="mounting a tmpfs needs root")
+@pytest.mark.parametrize("size_k", [300, 500])
+def test_disk_filled_by_someone_else_mid_write_is_still_one_line(tmp_path, ref, size_k):
+    """Without the writer's reserve (as when another process fills the disk between two frames)
+    HDF5's own writes fail: still one line, no crash, no temporary file, and the rerun works."""
+    mnt = tmp_path / "mnt"
+    mnt.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size_k}k", "tmpfs", str(mnt)]).returncode:
+        pytest.skip("cannot mount a tmpfs here")
+    try:
+        out = mnt / "run.h5"
+        argv = ["simulate", *SETS, "--seed", "3", "--out", str(out), "--quiet"]
+        code = ("import sys; import tiltpile.store as s; s.RESERVE_BYTES = 0; from tiltpile.cli import main; "
+                "raise SystemExit(main(sys.argv[1:]))")
+        p = subprocess.run([sys.executable, "-c", code, *argv], capture_output=True, text=True, env=ENV,
+                           timeout=120)
+        assert p.returncode == 1, p.stderr
+        _one_error_line(p.stderr.strip().splitlines(), f"no space left on device while writing {part_path(out)}")
+        assert not [q.name for q in mnt.iterdir() if q.name not in ("run.h5.part", "run.h5.ckpt")]
+        subprocess.run(["mount", "-o", "remount,size=64m", str(mnt)], check=True)
+        p = subprocess.run([sys.executable, "-m", "tiltpile", *argv], capture_output=True, text=True,
+                           env=ENV, timeout=120)
+        assert p.returncode == 0, p.stderr
+        assert_same_run(out, ref)
+    finally:
+        subprocess.run(["umount", "-l", str(mnt)])
