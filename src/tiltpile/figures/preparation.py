@@ -1,0 +1,416 @@
+"""Preparation study (issue 16): do piles tilted before the analysed ramp fail differently?
+
+The paper's piles had "several histories of inclination, including several back and forth
+oscillations"; ours fall fresh from a loose lattice unless ``protocol.pretilt_deg`` tilts them
+back and forth first (each leg at the ramp's rate, held until at rest, the analysed ramp then
+starting at 0 deg; the run file records it, ``Run.preparation``). This module compares several
+ensembles -- the first one is the reference, normally fresh piles -- run by run:
+
+* the first onset by the lost-contact cutoff (the paper's theta_m, 2% by default) and the first
+  large slide, both exactly as in Fig. 2 (:func:`tiltpile.figures.fig2.compute` is called per
+  ensemble: its slide threshold is that ensemble's Fig. 2a kinetic-energy threshold unless the
+  analysis parameter ``slide_ke`` is set, its least span ``slide_sustain_deg``);
+* the precursor events: onsets by the cutoff whose avalanche (the stretch of avalanching frames
+  it starts) ends before the first slide begins (:func:`precursor_count`); for a run without a
+  slide, every onset before the end of the tilt (such runs are marked: a lower bound on what a
+  longer tilt would count);
+* <z> and <n_m> over the run's quiet frames (bulk, force contacts; :func:`fig2.per_run_quiet`);
+
+and per ensemble the Fig. 2b two-population measure of the lost fraction (Ashman's D, valley
+depth, delta BIC; :func:`tiltpile.analysis.stats.bimodality` as Fig. 2 applies it) and the
+fraction of frames losing no contact. Means over runs carry bootstrap intervals
+(:func:`tiltpile.analysis.stats.bootstrap_ci`, BCa, 9999 resamples, seed 0); each prepared
+ensemble's difference of means from the reference carries a two-sample percentile bootstrap
+interval (:func:`diff_ci`; the runs of each ensemble resampled independently).
+
+A run without slide before the end of its tilt has no slide angle: the slide mean is over the
+runs that slid (``n_runs_with_slide`` says how many), which favours early slides when few slid.
+"""
+
+from __future__ import annotations
+
+import warnings
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from tiltpile.analysis import stats as _st
+from tiltpile.analysis.avalanche import stretches
+from tiltpile.analysis.observables import run_files
+
+from . import fig2, style
+
+NAME = "preparation"
+
+# the per-run quantities compared between ensembles (column of the per-run table: description)
+PER_RUN = {
+    "theta_first_onset": "first onset by the lost-contact cutoff (deg)",
+    "theta_first_slide": "first large slide (deg; NaN: none before the end of the tilt)",
+    "n_precursors": "onsets whose avalanche ends before the first slide (or before the end)",
+    "z_quiet": "mean z of the quiet frames (bulk, force contacts)",
+    "n_m_quiet": "mean n_m of the quiet frames",
+}
+
+
+# ----------------------------------------------------------------------------------------------
+# preparation history and its label
+
+
+def history_label(targets) -> str:
+    """A short name for a preparation history (the legs' target angles in deg, in order).
+
+    [] -> "fresh"; [a, -a, 0] -> "±a° once"; [a, -a, a, -a, 0] -> "±a° twice" (k > 2:
+    "k times"); [-a, a, 0] -> "∓a° once"; [a, 0] -> "a° once"; else "pretilt a/b/.../0°".
+    """
+    t = [float(x) for x in targets]
+    if not t:
+        return "fresh"
+
+    def num(x: float) -> str:
+        return f"{x:g}"
+
+    times = {1: "once", 2: "twice"}
+    body = t[:-1] if t[-1] == 0.0 else None
+    if body:
+        a = body[0]
+        if len(body) % 2 == 0 and a != 0.0 and all(x == (a if i % 2 == 0 else -a)
+                                                    for i, x in enumerate(body)):
+            k = len(body) // 2
+            return f"{'±' if a > 0 else '∓'}{num(abs(a))}° {times.get(k, f'{k} times')}"
+        if len(body) == 1:
+            return f"{num(a)}° once"
+    return "pretilt " + "/".join(num(x) for x in t) + "°"
+
+
+def preparation_history(data_dir) -> list[float]:
+    """The preparation history shared by the runs of ``data_dir``: the target angles (deg) of the
+    pretilt legs from each run file's ``preparation`` record (``protocol.pretilt_deg`` of the
+    run's configuration when the file has no record; [] for fresh piles). ValueError when the runs
+    disagree or the directory holds no run file."""
+    from tiltpile.store import open_run
+    files = run_files(Path(data_dir))
+    if not files:
+        raise ValueError(f"{data_dir}: no run_*.h5 files")
+    seen = {}
+    for f in files:
+        with open_run(f) as r:
+            prep = r.preparation.get("target_deg")
+            t = (np.atleast_1d(prep).astype(float).tolist() if prep is not None
+                 else [float(x) for x in r.config.get("protocol", {}).get("pretilt_deg", ())])
+        seen.setdefault(tuple(t), []).append(f.name)
+    if len(seen) > 1:
+        what = "; ".join(f"{list(k)} in {', '.join(v)}" for k, v in seen.items())
+        raise ValueError(f"{data_dir}: the runs have different preparation histories ({what})")
+    return list(next(iter(seen)))
+
+
+def check_inputs(data_dirs, labels=None) -> list[str]:
+    """Refuse (ValueError, one message listing every problem) a study that cannot be made:
+    no directory, a directory that does not exist or holds no run file, labels (when given,
+    non-empty) not one per directory or repeated. Returns the labels ([] when none given)."""
+    dirs = [Path(d) for d in (data_dirs or [])]
+    labels = [str(x) for x in (labels or [])]
+    problems = []
+    if not dirs:
+        problems.append("no ensemble directory given (data_dirs is empty)")
+    for d in dirs:
+        if not d.is_dir():
+            problems.append(f"{d} is not a directory")
+        elif not run_files(d):
+            problems.append(f"{d} holds no run_*.h5 files (run `tiltpile ensemble` first)")
+    if labels and len(labels) != len(dirs):
+        problems.append(f"{len(labels)} labels for {len(dirs)} ensemble directories: give one "
+                        "label per directory, or none to name them by their preparation")
+    if labels and len(set(labels)) != len(labels):
+        problems.append(f"labels repeat: {labels}")
+    if problems:
+        raise ValueError("preparation study: " + "; ".join(problems))
+    return labels
+
+
+def load(data_dirs, labels=None, **analysis_params) -> tuple[list, list[str], list[list[float]]]:
+    """The ensembles of ``data_dirs`` (:func:`tiltpile.figures.data.load_ensemble`, with
+    ``analysis_params``), their labels and preparation histories, after :func:`check_inputs`.
+    Labels not given are derived from the run files' preparation (:func:`history_label`; the
+    directory name is appended where two would be equal)."""
+    from .data import load_ensemble
+    labels = check_inputs(data_dirs, labels)
+    hist = [preparation_history(d) for d in data_dirs]
+    if not labels:
+        derived = [history_label(h) for h in hist]
+        labels = [f"{x} ({Path(d).name})" if derived.count(x) > 1 else x
+                  for x, d in zip(derived, data_dirs)]
+    ens = [load_ensemble(d, None, **analysis_params) for d in data_dirs]
+    return ens, labels, hist
+
+
+# ----------------------------------------------------------------------------------------------
+# per-run numbers
+
+
+def precursor_count(theta_deg, onset, avalanching, theta_slide: float) -> int:
+    """Onsets before a run's first slide (module docstring).
+
+    theta_deg, onset, avalanching: one run's frames in order (deg, bool, bool); theta_slide: its
+    first slide (deg; NaN: none). An onset counts when the avalanching stretch it starts ends
+    (its last frame) at theta < theta_slide: an avalanche still running when the slide begins is
+    the slide's own start. With no slide every onset counts.
+    """
+    th = np.asarray(theta_deg, dtype=float)
+    on = np.asarray(onset, dtype=bool)
+    av = np.asarray(avalanching, dtype=bool)
+    if not (th.shape == on.shape == av.shape):
+        raise ValueError("precursor_count: theta_deg, onset and avalanching differ in length")
+    av = av | on
+    idx = np.flatnonzero(on)
+    if not np.isfinite(theta_slide):
+        return int(idx.size)
+    starts, ends = stretches(av)
+    last = np.empty(th.size, dtype=int)                # last frame of the stretch holding k
+    for s, e in zip(starts, ends):
+        last[s:e] = e - 1
+    return int(sum(th[last[i]] < theta_slide - 1e-9 for i in idx))
+
+
+def per_run_table(ens, theta_onset, theta_slide) -> pd.DataFrame:
+    """Per run of ``ens`` (seeds order): theta_first_onset, theta_first_slide, slid, theta_end,
+    n_onsets, n_precursors, z_quiet, n_m_quiet, z_start (bulk z at frame 0)."""
+    f = ens.frames.sort_values(["run", "frame"], kind="stable")
+    q = fig2.per_run_quiet(f, ens.seeds)
+    rows = []
+    for k, s in enumerate(ens.seeds):
+        g = f[f["run"] == s]
+        th = g["theta_deg"].to_numpy(float)
+        sl = float(theta_slide[k])
+        rows.append({"run": int(s), "theta_first_onset": float(theta_onset[k]),
+                     "theta_first_slide": sl, "slid": bool(np.isfinite(sl)),
+                     "theta_end": float(th[-1]) if th.size else np.nan,
+                     "n_onsets": int(g["onset"].astype(bool).sum()),
+                     "n_precursors": precursor_count(th, g["onset"].to_numpy(bool),
+                                                     g["avalanching"].to_numpy(bool), sl),
+                     "z_quiet": float(q["z"].iloc[k]), "n_m_quiet": float(q["n_m"].iloc[k]),
+                     "z_start": float(g["z"].iloc[0]) if len(g) else np.nan})
+    return pd.DataFrame(rows)
+
+
+def diff_ci(x, y, confidence: float = 0.95, n_resamples: int = 9999, seed: int = 0) -> dict:
+    """mean(x) - mean(y) of two independent sets of per-run values (NaN dropped) with a
+    percentile bootstrap interval (scipy.stats.bootstrap, each set resampled on its own).
+    Fewer than 2 values in a set: the interval is NaN. Returns dict estimate, low, high, n_x,
+    n_y, confidence. (A candidate for :mod:`tiltpile.analysis.stats`.)"""
+    from scipy import stats as _sst
+    x = np.asarray(x, dtype=float).ravel()
+    y = np.asarray(y, dtype=float).ravel()
+    x, y = x[np.isfinite(x)], y[np.isfinite(y)]
+    est = float(x.mean() - y.mean()) if x.size and y.size else np.nan
+    out = {"estimate": est, "low": np.nan, "high": np.nan, "n_x": int(x.size), "n_y": int(y.size),
+           "confidence": float(confidence)}
+    if x.size < 2 or y.size < 2:
+        return out
+    if np.ptp(x) == 0 and np.ptp(y) == 0:
+        out.update(low=est, high=est)
+        return out
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = _sst.bootstrap((x, y), lambda a, b: np.mean(a) - np.mean(b), paired=False,
+                             confidence_level=confidence, n_resamples=n_resamples,
+                             method="percentile", vectorized=False,
+                             rng=np.random.default_rng(seed))
+    out.update(low=float(res.confidence_interval.low), high=float(res.confidence_interval.high))
+    return out
+
+
+def _config_differences(ens_list) -> list[str]:
+    """Configuration keys (section.key) whose values differ between the ensembles, apart from
+    protocol.pretilt_deg (configurations normalised by :func:`tiltpile.config.from_dict`)."""
+    from tiltpile import config as _cfg
+    dicts = [_cfg.from_dict(e.config).to_dict() for e in ens_list]
+    out = []
+    for sec in dicts[0]:
+        for key in dicts[0][sec]:
+            if (sec, key) == ("protocol", "pretilt_deg"):
+                continue
+            vals = [d[sec][key] for d in dicts]
+            if any(v != vals[0] for v in vals[1:]):
+                out.append(f"{sec}.{key}")
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# the study
+
+
+def compute(ens_list, labels, histories=None, confidence: float = 0.95, **fig2_kwargs
+            ) -> tuple[dict, dict]:
+    """Numbers and plot data of the preparation study (module docstring).
+
+    ens_list: ensembles (:class:`tiltpile.figures.data.Ensemble`), the first the reference;
+    labels: one per ensemble; histories: their preparation histories (target angles, deg; None:
+    read from the run files, :func:`preparation_history`); confidence: of every interval;
+    fig2_kwargs: passed to :func:`tiltpile.figures.fig2.compute` (ke_* of the slide threshold,
+    slide_sustain_deg, lost_bins_per_decade, ...), so that onsets, slides and the bimodality are
+    Fig. 2's.
+
+    numbers:
+      reference                    label of the first ensemble
+      config_differences           configuration keys other than protocol.pretilt_deg whose values
+                                   differ between the ensembles (empty: only the preparation does)
+      ensembles                    {label: per-ensemble dict}, in input order, each with
+        pretilt_deg, n_runs, seeds, theta_end_min
+        per_run                    {column: list over seeds} of :func:`per_run_table`
+        <q>_mean, <q>_ci_low, <q>_ci_high  for q in PER_RUN (bootstrap over runs; the slide over
+                                   the runs that slid), and n_runs_with_onset, n_runs_with_slide
+        z_start_mean (+ CI)        bulk z of the runs' first frame (the pile as the ramp starts)
+        n_precursors_slid_mean     mean precursor count over the runs that slid (the others count
+                                   to the end of the tilt)
+        slide_ke, slide_sustain_deg, cutoff   the slide detector and onset cutoff used (Fig. 2)
+        lost_bimodality            Fig. 2b's: delta_bic, ashman_d, valley_depth, valley, ...
+        lost_zero_fraction         fraction of the frames that lose no contact
+        theta_m_mean_fig2          Fig. 2's theta_m_mean of the same ensemble (check)
+      differences                  {label: {q: diff_ci(ensemble, reference)}} for q in PER_RUN,
+                                   each prepared ensemble against the reference
+    """
+    ens_list = list(ens_list)
+    labels = [str(x) for x in labels]
+    if not ens_list:
+        raise ValueError("preparation study: no ensemble")
+    if len(labels) != len(ens_list):
+        raise ValueError(f"preparation study: {len(labels)} labels for {len(ens_list)} ensembles")
+    if len(set(labels)) != len(labels):
+        raise ValueError(f"preparation study: labels repeat: {labels}")
+    if histories is None:
+        histories = [preparation_history(e.data_dir) for e in ens_list]
+    numbers: dict = {"reference": labels[0], "config_differences": _config_differences(ens_list),
+                     "ensembles": {}, "differences": {}}
+    tables = {}
+    for e, lab, hist in zip(ens_list, labels, histories):
+        n2, _ = fig2.compute(e, confidence=confidence, **fig2_kwargs)
+        t = per_run_table(e, n2["theta_m_per_run"], n2["theta_slide_per_run"])
+        tables[lab] = t
+        out = {"pretilt_deg": [float(x) for x in hist], "n_runs": int(e.n_runs),
+               "seeds": [int(s) for s in e.seeds], "theta_end_min": n2["theta_end_min"],
+               "per_run": {c: t[c].tolist() for c in t.columns if c != "run"}}
+        for q in list(PER_RUN) + ["z_start"]:
+            ci = _st.bootstrap_ci(t[q], confidence=confidence)
+            out.update({f"{q}_mean": ci["estimate"], f"{q}_ci_low": ci["low"],
+                        f"{q}_ci_high": ci["high"]})
+        slid = t["slid"].to_numpy(bool)
+        out.update(n_runs_with_onset=int(np.isfinite(t["theta_first_onset"]).sum()),
+                   n_runs_with_slide=int(slid.sum()),
+                   n_precursors_slid_mean=float(t["n_precursors"][slid].mean()) if slid.any()
+                   else np.nan,
+                   slide_ke=n2["slide_ke"], slide_sustain_deg=n2["slide_sustain_deg"],
+                   cutoff=n2["cutoff"], lost_bimodality=n2["lost_bimodality"],
+                   lost_zero_fraction=n2["lost_zero_fraction"],
+                   theta_m_mean_fig2=n2["theta_m_mean"])
+        numbers["ensembles"][lab] = out
+    ref = tables[labels[0]]
+    for lab in labels[1:]:
+        numbers["differences"][lab] = {q: diff_ci(tables[lab][q], ref[q], confidence=confidence)
+                                       for q in PER_RUN}
+    data = {"labels": labels, "tables": tables, "confidence": confidence,
+            "n_grains": [e.meta.get("n_grains") for e in ens_list]}
+    return numbers, data
+
+
+def meta(ens_list, labels, histories) -> dict:
+    """What the JSON records beside the numbers: per ensemble its directory, label, preparation
+    history, preset, runs, seeds, grains, config hash and analysis parameters."""
+    return {"ensembles": [dict(e.meta, data_dir=str(e.data_dir), label=lab,
+                               pretilt_deg=[float(x) for x in h])
+                          for e, lab, h in zip(ens_list, labels, histories)]}
+
+
+# ----------------------------------------------------------------------------------------------
+# the figure
+
+
+def _mean_ci(ax, x, ens_numbers, q, color, marker="_"):
+    """The mean over runs and its bootstrap interval, at x + 0.07 (beside the points)."""
+    x = x + 0.07
+    m = ens_numbers[f"{q}_mean"]
+    lo, hi = ens_numbers[f"{q}_ci_low"], ens_numbers[f"{q}_ci_high"]
+    if not np.isfinite(m):
+        return
+    yerr = (np.array([[m - lo], [hi - m]]) if np.isfinite(lo) and np.isfinite(hi) else None)
+    ax.errorbar([x], [m], yerr=yerr, color=color, marker=marker, ms=9, mew=1.6, lw=1.2,
+                capsize=2.5, zorder=4)
+
+
+def _points(ax, x, y, color, marker, filled=None, jitter=0.05):
+    """Per-run values as points spread over x - 0.07 +- jitter (the mean sits at x + 0.07)."""
+    y = np.asarray(y, dtype=float)
+    xs = x - 0.07 + jitter * (np.arange(y.size) - (y.size - 1) / 2) / max(y.size - 1, 1) * 2
+    filled = np.ones(y.size, bool) if filled is None else np.asarray(filled, bool)
+    for sel, face in ((filled, color), (~filled, "white")):
+        ax.plot(xs[sel], y[sel], ls="none", marker=marker, ms=3.2, mew=0.7, mec=color, mfc=face,
+                zorder=3)
+
+
+def plot(data: dict, numbers: dict):
+    """(a) first onset and first slide per ensemble, (b) precursor events before the slide,
+    (c) <z>, (d) <n_m> of the quiet frames: per run (points; open: the run did not slide before
+    the end of its tilt, shown at that angle in a and counted to it in b) and mean with its
+    bootstrap interval (bar)."""
+    labels = data["labels"]
+    nens = len(labels)
+    ens = numbers["ensembles"]
+    onset_c, slide_c = style.OKABE_ITO["blue"], style.COLORS["avalanche"]
+    fig, axs = style.figure(1, 4, width=style.DOUBLE_COLUMN_IN, height=2.45,
+                            gridspec_kw=dict(wspace=0.42, left=0.06, right=0.99, bottom=0.2,
+                                             top=0.8))
+    a, b, c, d = axs
+    x = np.arange(nens, dtype=float)
+    for i, lab in enumerate(labels):
+        t, e = data["tables"][lab], ens[lab]
+        slid = t["slid"].to_numpy(bool)
+        _points(a, x[i] - 0.2, t["theta_first_onset"], onset_c, "o")
+        _mean_ci(a, x[i] - 0.2, e, "theta_first_onset", onset_c)
+        ys = np.where(slid, t["theta_first_slide"], t["theta_end"])
+        _points(a, x[i] + 0.2, ys, slide_c, "s", filled=slid)
+        _mean_ci(a, x[i] + 0.2, e, "theta_first_slide", slide_c)
+        a.text(x[i] + 0.2, 1.0, f"{int(slid.sum())}/{len(t)}\nslid",
+               transform=a.get_xaxis_transform(), ha="center", va="bottom", fontsize=5.5,
+               color=slide_c)
+        _points(b, x[i], t["n_precursors"], style.COLORS["quiet"], "D", filled=slid)
+        _mean_ci(b, x[i], e, "n_precursors", style.COLORS["quiet"])
+        _points(c, x[i], t["z_quiet"], style.COLORS["quiet"], "o")
+        _mean_ci(c, x[i], e, "z_quiet", style.COLORS["quiet"])
+        _points(d, x[i], t["n_m_quiet"], style.COLORS["quiet"], "o")
+        _mean_ci(d, x[i], e, "n_m_quiet", style.COLORS["quiet"])
+    names = [f"{lab}\n{len(data['tables'][lab])} runs" for lab in labels]
+    for ax, lab, ylab in ((a, "a", r"$\theta$ (deg)"), (b, "b", "precursor events"),
+                          (c, "c", r"$\langle z\rangle$ quiet frames"),
+                          (d, "d", r"$\langle n_m\rangle$ quiet frames")):
+        ax.set_xticks(x, names, fontsize=6)
+        ax.set_xlim(-0.6, nens - 0.4)
+        ax.set_ylabel(ylab)
+        ax.tick_params(axis="x", which="both", top=False)
+        ax.text(-0.02, 1.02, lab, transform=ax.transAxes, ha="right", va="bottom",
+                fontstyle="italic", fontweight="bold")
+    from matplotlib.ticker import MaxNLocator
+    b.set_ylim(-0.6, max(b.get_ylim()[1], 2.0))
+    b.yaxis.set_major_locator(MaxNLocator(integer=True))
+    a.set_ylim(bottom=0)
+    from matplotlib.lines import Line2D
+    handles = [Line2D([], [], ls="none", marker="o", color=onset_c, ms=4,
+                      label=f"first onset ({100 * ens[labels[0]]['cutoff']:g}% contacts lost)"),
+               Line2D([], [], ls="none", marker="s", color=slide_c, ms=4,
+                      label="first large slide (mean: runs that slid)"),
+               Line2D([], [], ls="none", marker="s", mfc="white", mec=slide_c, ms=4,
+                      label=r"no slide: end of tilt (a), events to the end (b)"),
+               Line2D([], [], ls="none", marker="_", color="k", ms=9, mew=1.6,
+                      label=f"mean, {100 * data['confidence']:g}% bootstrap CI over runs")]
+    fig.legend(handles=handles, loc="upper center", ncol=4, bbox_to_anchor=(0.5, 1.0),
+               handletextpad=0.3, columnspacing=1.2)
+    def fmt(v, spec):
+        return format(v, spec) if v is not None and np.isfinite(v) else "n/a"
+
+    bm = "; ".join(
+        f"{lab}: Ashman D = {fmt(ens[lab]['lost_bimodality']['ashman_d'], '.1f')}, valley "
+        f"{fmt(ens[lab]['lost_bimodality']['valley_depth'], '.2f')}, no contact lost in "
+        f"{fmt(100 * ens[lab]['lost_zero_fraction'], '.0f')}% of frames" for lab in labels)
+    fig.text(0.5, 0.005, "Fig. 2b two populations -- " + bm, ha="center", va="bottom",
+             fontsize=5.5)
+    return fig

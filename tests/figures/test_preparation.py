@@ -1,0 +1,224 @@
+"""Preparation study (issue 16): compute() on two tiny simulated ensembles, fresh and prepared
+(pretilt [5, -5, 0] deg), against the analysis functions run by run; labels from the run files;
+the notebook writes its JSON; bad input refused with one message. About 30 s on a loaded core.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import warnings
+from pathlib import Path
+
+import matplotlib
+
+matplotlib.use("Agg")
+
+import matplotlib.pyplot as plt  # noqa: E402
+import numpy as np  # noqa: E402
+import pytest  # noqa: E402
+
+from tiltpile.analysis import first_slide, run_table  # noqa: E402
+from tiltpile.analysis import stats as st  # noqa: E402
+from tiltpile.analysis.ensemble_data import first_onsets  # noqa: E402
+from tiltpile.figures import fig2, preparation  # noqa: E402
+
+ROOT = Path(__file__).resolve().parents[2]
+TINY = ["scene.n=60", "scene.box_length=10.0", "protocol.theta_max_deg=25.0"]
+PRETILT = [5.0, -5.0, 0.0]
+SEEDS = [1, 2]
+
+
+@pytest.fixture(scope="module")
+def tiny(tmp_path_factory):
+    """Two seeds each of a 60-grain smoke pile, fresh and prepared, with their observables."""
+    from tiltpile import config
+    from tiltpile.analysis import compute_observables
+    from tiltpile.runner import simulate
+
+    root = tmp_path_factory.mktemp("prep")
+    dirs = {}
+    for name, extra in (("fresh", []), ("prep", [f"protocol.pretilt_deg={PRETILT}"])):
+        cfg = config.load("smoke", overrides=TINY + [x.replace(" ", "") for x in extra])
+        for s in SEEDS:
+            simulate(cfg, s, root / name / f"run_{s:04d}.h5", progress=False)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")       # 60 grains: the cutoff's resolution warning
+            compute_observables(root / name, workers=1, progress=False)
+        dirs[name] = root / name
+    return dirs
+
+
+@pytest.fixture(scope="module")
+def study(tiny):
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ens, labels, hist = preparation.load([tiny["fresh"], tiny["prep"]], [])
+        numbers, d = preparation.compute(ens, labels, hist)
+    return ens, labels, hist, numbers, d
+
+
+# ---------------------------------------------------------------------------------------------
+# pure pieces with known answers
+
+
+def test_history_labels():
+    assert preparation.history_label([]) == "fresh"
+    assert preparation.history_label([10.0, -10.0, 0.0]) == "±10° once"
+    assert preparation.history_label([15, -15, 15, -15, 0]) == "±15° twice"
+    assert preparation.history_label([5, -5] * 3 + [0]) == "±5° 3 times"
+    assert preparation.history_label([-7.5, 7.5, 0]) == "∓7.5° once"
+    assert preparation.history_label([12.0, 0.0]) == "12° once"
+    assert preparation.history_label([10.0, -5.0, 0.0]) == "pretilt 10/-5/0°"
+
+
+def test_precursor_count_known_answers():
+    th = 0.1 * np.arange(12)
+    av = np.zeros(12, bool)
+    av[[2, 3, 6, 9, 10, 11]] = True         # avalanches at 0.2-0.3, 0.6, 0.9-1.1
+    on = np.zeros(12, bool)
+    on[[2, 6, 9]] = True
+    assert preparation.precursor_count(th, on, av, np.nan) == 3       # no slide: every onset
+    assert preparation.precursor_count(th, on, av, 1.0) == 2          # 0.9-1.1 runs into it
+    assert preparation.precursor_count(th, on, av, 0.9) == 2          # slide starts with it
+    assert preparation.precursor_count(th, on, av, 0.6) == 1          # 0.6 is the slide's own
+    assert preparation.precursor_count(th, on, av, 0.3) == 0          # still running at 0.3
+    assert preparation.precursor_count(th, on, av, 0.35) == 1
+    with pytest.raises(ValueError, match="differ in length"):
+        preparation.precursor_count(th, on[:-1], av, 1.0)
+
+
+def test_diff_ci():
+    x, y = np.array([10.0, 11.0, 12.0, 13.0]), np.array([7.0, 8.0, 9.0])
+    r = preparation.diff_ci(x, y)
+    assert r["estimate"] == pytest.approx(3.5)
+    assert r["low"] < 3.5 < r["high"] and r["high"] - r["low"] < 4.0
+    assert (r["n_x"], r["n_y"]) == (4, 3)
+    assert np.isnan(preparation.diff_ci([1.0], y)["low"])
+
+
+# ---------------------------------------------------------------------------------------------
+# the study on simulated ensembles
+
+
+def test_labels_and_histories_come_from_the_run_files(study):
+    ens, labels, hist, numbers, _ = study
+    assert labels == ["fresh", "±5° once"]
+    assert hist == [[], PRETILT]
+    assert list(numbers["ensembles"]) == labels and numbers["reference"] == "fresh"
+    assert numbers["ensembles"]["±5° once"]["pretilt_deg"] == PRETILT
+    # only the preparation differs between the two configurations
+    assert numbers["config_differences"] == []
+    assert all(numbers["ensembles"][lab]["seeds"] == SEEDS for lab in labels)
+
+
+def test_numbers_equal_the_analysis_run_by_run(study):
+    ens, labels, _, numbers, d = study
+    for e, lab in zip(ens, labels):
+        out = numbers["ensembles"][lab]
+        f = e.frames.sort_values(["run", "frame"], kind="stable")
+        # the slide as Fig. 2 detects it: the ensemble's KE threshold, the analysis' least span
+        thr = st.ke_threshold(f, "ke_trans")[0]["threshold"]
+        assert out["slide_ke"] == pytest.approx(thr)
+        rt = run_table(f, slide_ke=thr, slide_sustain_deg=out["slide_sustain_deg"]).set_index("run")
+        pr = out["per_run"]
+        np.testing.assert_array_equal(pr["theta_first_onset"], first_onsets(f, e.seeds))
+        np.testing.assert_array_equal(pr["theta_first_onset"],
+                                      rt.loc[e.seeds, "theta_first_onset"].to_numpy())
+        np.testing.assert_array_equal(pr["theta_first_slide"],
+                                      rt.loc[e.seeds, "theta_first_slide"].to_numpy())
+        for k, s in enumerate(e.seeds):
+            g = f[f["run"] == s]
+            th = g["theta_deg"].to_numpy(float)
+            sl = first_slide(th, g["ke_trans"].to_numpy(float), thr, out["slide_sustain_deg"])
+            assert pr["theta_first_slide"][k] == pytest.approx(sl, nan_ok=True)
+            quiet = ~g["avalanching"].to_numpy(bool)
+            assert pr["z_quiet"][k] == pytest.approx(g["z"][quiet].mean())
+            assert pr["n_m_quiet"][k] == pytest.approx(g["n_m"][quiet].mean())
+            # precursors: onsets whose avalanching stretch has ended before the slide's frame
+            on = np.flatnonzero(g["onset"].to_numpy(bool))
+            av = g["avalanching"].to_numpy(bool)
+            n = 0
+            for i in on:
+                j = i
+                while j + 1 < av.size and av[j + 1]:
+                    j += 1
+                n += bool(not np.isfinite(sl) or th[j] < sl)
+            assert pr["n_precursors"][k] == n
+            assert pr["n_precursors"][k] <= pr["n_onsets"][k] == on.size
+        # means and intervals over runs are the library's bootstrap of the per-run values
+        for q in preparation.PER_RUN:
+            ci = st.bootstrap_ci(pr[q])
+            assert out[f"{q}_mean"] == pytest.approx(ci["estimate"], nan_ok=True)
+            assert out[f"{q}_ci_low"] == pytest.approx(ci["low"], nan_ok=True)
+        # the Fig. 2b measure and the frames losing no contact are Fig. 2's
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            n2, _ = fig2.compute(e)
+        assert out["lost_zero_fraction"] == pytest.approx(n2["lost_zero_fraction"])
+        lf = f["lost_fraction"].to_numpy(float)
+        lf = lf[np.isfinite(lf)]
+        assert out["lost_zero_fraction"] == pytest.approx(np.mean(lf <= 0))
+        assert out["lost_bimodality"]["n"] == n2["lost_bimodality"]["n"]
+        assert out["lost_bimodality"]["delta_bic"] == pytest.approx(
+            n2["lost_bimodality"]["delta_bic"], nan_ok=True)
+        assert out["theta_m_mean_fig2"] == pytest.approx(out["theta_first_onset_mean"])
+    diff = numbers["differences"]["±5° once"]["z_quiet"]
+    assert diff["estimate"] == pytest.approx(numbers["ensembles"]["±5° once"]["z_quiet_mean"]
+                                             - numbers["ensembles"]["fresh"]["z_quiet_mean"])
+    fig = preparation.plot(d, numbers)
+    assert len(fig.axes) == 4
+    plt.close(fig)
+
+
+def test_the_notebook_writes_the_json(tiny, tmp_path):
+    import papermill as pm
+    os.environ.setdefault("NUMBA_CACHE_DIR", str(ROOT / ".venv" / "numba-cache"))
+    pm.execute_notebook(str(ROOT / "notebooks" / "preparation.ipynb"), str(tmp_path / "run.ipynb"),
+                        kernel_name="tiltpile", cwd=str(ROOT), progress_bar=False,
+                        parameters={"data_dirs": [str(tiny["fresh"]), str(tiny["prep"])],
+                                    "labels": ["fresh piles", "prepared"],
+                                    "figures_dir": str(tmp_path)})
+    for ext in ("png", "pdf", "json"):
+        assert (tmp_path / f"preparation.{ext}").stat().st_size > 0
+    doc = json.loads((tmp_path / "preparation.json").read_text())
+    assert doc["figure"] == "preparation"
+    meta = doc["ensembles"]
+    assert [m["label"] for m in meta] == ["fresh piles", "prepared"]
+    assert [m["pretilt_deg"] for m in meta] == [[], PRETILT]
+    assert all(m["seeds"] == SEEDS and m["n_runs"] == 2 and len(m["config_hash"]) == 12
+               for m in meta)
+    assert meta[0]["config_hash"] != meta[1]["config_hash"]
+    assert list(doc["numbers"]["ensembles"]) == ["fresh piles", "prepared"]
+    assert doc["numbers"]["ensembles"]["prepared"]["n_runs"] == 2
+
+
+# ---------------------------------------------------------------------------------------------
+# bad input
+
+
+def test_bad_input_is_refused_with_one_message(tiny, tmp_path):
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    with pytest.raises(ValueError, match=r"^preparation study: .*empty holds no run_\*\.h5"):
+        preparation.load([tiny["fresh"], empty], [])
+    with pytest.raises(ValueError, match="3 labels for 2 ensemble directories"):
+        preparation.load([tiny["fresh"], tiny["prep"]], ["a", "b", "c"])
+    with pytest.raises(ValueError, match="labels repeat"):
+        preparation.load([tiny["fresh"], tiny["prep"]], ["a", "a"])
+    with pytest.raises(ValueError, match="no ensemble directory"):
+        preparation.load([], [])
+    # every problem in the one message
+    with pytest.raises(ValueError) as info:
+        preparation.load([empty, tmp_path / "missing"], ["x"])
+    msg = str(info.value)
+    assert "holds no run" in msg and "is not a directory" in msg and "1 labels for 2" in msg
+    # an ensemble whose runs were prepared differently
+    mixed = tmp_path / "mixed"
+    mixed.mkdir()
+    (mixed / "run_0001.h5").symlink_to(tiny["fresh"] / "run_0001.h5")
+    (mixed / "run_0002.h5").symlink_to(tiny["prep"] / "run_0002.h5")
+    with pytest.raises(ValueError, match="different preparation histories"):
+        preparation.preparation_history(mixed)
+    with pytest.raises(ValueError, match="2 labels for 1 ensembles"):
+        preparation.compute([object()], ["a", "b"])
