@@ -135,3 +135,26 @@ bench: setup
 
 clean-data:
 	rm -rf data/
+
+# `make preparation PREP_DIRS="data/default data/default-prep10" [PREP_LABELS="fresh|±10° once"]
+#                   [PREP_FIGURES=figures]`: the preparation study (issue 16), notebooks/preparation.ipynb
+# on the ensembles of PREP_DIRS (the first is the reference, normally fresh piles) into
+# PREP_FIGURES/preparation.{png,pdf,json}. The ensembles must exist (their observables are computed
+# if missing); PREP_LABELS, '|'-separated, default to each ensemble's preparation history.
+PREP_DIRS ?= data/default
+PREP_LABELS ?=
+PREP_FIGURES ?= figures
+prep_comma := ,
+prep_empty :=
+prep_space := $(prep_empty) $(prep_empty)
+PREP_PARAMS = {"data_dirs": [$(subst $(prep_space),$(prep_comma),$(foreach d,$(PREP_DIRS),"$(d)"))], \
+               "labels": [$(if $(strip $(PREP_LABELS)),"$(subst |,"$(prep_comma)",$(PREP_LABELS))")], \
+               "figures_dir": "$(PREP_FIGURES)"}
+.PHONY: preparation
+preparation: | $(STAMP)
+	@mkdir -p notebooks/executed $(PREP_FIGURES)
+	@echo "papermill notebooks/preparation.ipynb -> notebooks/executed/preparation.ipynb"
+	@$(PY) -m papermill --kernel tiltpile --cwd $(CURDIR) --no-progress-bar notebooks/preparation.ipynb \
+	  notebooks/executed/preparation.ipynb -y '$(PREP_PARAMS)' \
+	  || { echo "papermill failed: notebooks/preparation.ipynb (output notebook: notebooks/executed/preparation.ipynb)"; exit 1; }
+	@test -f $(PREP_FIGURES)/preparation.json || { echo "notebooks/preparation.ipynb did not write $(PREP_FIGURES)/preparation.json"; exit 1; }
