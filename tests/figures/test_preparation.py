@@ -109,6 +109,7 @@ def test_labels_and_histories_come_from_the_run_files(study):
     assert numbers["ensembles"]["±5° once"]["pretilt_deg"] == PRETILT
     # only the preparation differs between the two configurations
     assert numbers["config_differences"] == []
+    assert numbers["below_deg"] == 5.0
     assert all(numbers["ensembles"][lab]["seeds"] == SEEDS for lab in labels)
 
 
@@ -146,6 +147,8 @@ def test_numbers_equal_the_analysis_run_by_run(study):
                 n += bool(not np.isfinite(sl) or th[j] < sl)
             assert pr["n_precursors"][k] == n
             assert pr["n_precursors"][k] <= pr["n_onsets"][k] == on.size
+            # onsets below the study's largest pretilt angle (5 deg)
+            assert pr["n_onsets_below"][k] == (th[on] < 5.0).sum()
         # means and intervals over runs are the library's bootstrap of the per-run values
         for q in preparation.PER_RUN:
             ci = st.bootstrap_ci(pr[q])

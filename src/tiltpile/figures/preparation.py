@@ -13,7 +13,8 @@ ensembles -- the first one is the reference, normally fresh piles -- run by run:
 * the precursor events: onsets by the cutoff whose avalanche (the stretch of avalanching frames
   it starts) ends before the first slide begins (:func:`precursor_count`); for a run without a
   slide, every onset before the end of the tilt (such runs are marked: a lower bound on what a
-  longer tilt would count);
+  longer tilt would count); and the onsets below the study's largest pretilt angle (a pile
+  tilted there before should rearrange less below it);
 * <z> and <n_m> over the run's quiet frames (bulk, force contacts; :func:`fig2.per_run_quiet`);
 
 and per ensemble the Fig. 2b two-population measure of the lost fraction (Ashman's D, valley
@@ -48,6 +49,7 @@ PER_RUN = {
     "theta_first_onset": "first onset by the lost-contact cutoff (deg)",
     "theta_first_slide": "first large slide (deg; NaN: none before the end of the tilt)",
     "n_precursors": "onsets whose avalanche ends before the first slide (or before the end)",
+    "n_onsets_below": "onsets below the largest pretilt angle of the study (below_deg)",
     "z_quiet": "mean z of the quiet frames (bulk, force contacts)",
     "n_m_quiet": "mean n_m of the quiet frames",
 }
@@ -173,9 +175,10 @@ def precursor_count(theta_deg, onset, avalanching, theta_slide: float) -> int:
     return int(sum(th[last[i]] < theta_slide - 1e-9 for i in idx))
 
 
-def per_run_table(ens, theta_onset, theta_slide) -> pd.DataFrame:
+def per_run_table(ens, theta_onset, theta_slide, below_deg: float = np.nan) -> pd.DataFrame:
     """Per run of ``ens`` (seeds order): theta_first_onset, theta_first_slide, slid, theta_end,
-    n_onsets, n_precursors, z_quiet, n_m_quiet, z_start (bulk z at frame 0)."""
+    n_onsets, n_precursors, n_onsets_below (onsets at theta < below_deg; NaN without it),
+    z_quiet, n_m_quiet, z_start (bulk z at frame 0)."""
     f = ens.frames.sort_values(["run", "frame"], kind="stable")
     q = fig2.per_run_quiet(f, ens.seeds)
     rows = []
@@ -189,6 +192,8 @@ def per_run_table(ens, theta_onset, theta_slide) -> pd.DataFrame:
                      "n_onsets": int(g["onset"].astype(bool).sum()),
                      "n_precursors": precursor_count(th, g["onset"].to_numpy(bool),
                                                      g["avalanching"].to_numpy(bool), sl),
+                     "n_onsets_below": (float((th[g["onset"].to_numpy(bool)] < below_deg).sum())
+                                        if np.isfinite(below_deg) else np.nan),
                      "z_quiet": float(q["z"].iloc[k]), "n_m_quiet": float(q["n_m"].iloc[k]),
                      "z_start": float(g["z"].iloc[0]) if len(g) else np.nan})
     return pd.DataFrame(rows)
@@ -256,6 +261,8 @@ def compute(ens_list, labels, histories=None, confidence: float = 0.95, **fig2_k
       reference                    label of the first ensemble
       config_differences           configuration keys other than protocol.pretilt_deg whose values
                                    differ between the ensembles (empty: only the preparation does)
+      below_deg                    the largest |pretilt angle| of the study (NaN: all fresh): a
+                                   pile tilted before is expected to rearrange less below it
       ensembles                    {label: per-ensemble dict}, in input order, each with
         pretilt_deg, n_runs, seeds, theta_end_min
         per_run                    {column: list over seeds} of :func:`per_run_table`
@@ -281,12 +288,14 @@ def compute(ens_list, labels, histories=None, confidence: float = 0.95, **fig2_k
         raise ValueError(f"preparation study: labels repeat: {labels}")
     if histories is None:
         histories = [preparation_history(e.data_dir) for e in ens_list]
+    amp = [abs(float(x)) for h in histories for x in h]
+    below = max(amp) if amp and max(amp) > 0 else np.nan
     numbers: dict = {"reference": labels[0], "config_differences": _config_differences(ens_list),
-                     "ensembles": {}, "differences": {}}
+                     "below_deg": below, "ensembles": {}, "differences": {}}
     tables = {}
     for e, lab, hist in zip(ens_list, labels, histories):
         n2, _ = fig2.compute(e, confidence=confidence, **fig2_kwargs)
-        t = per_run_table(e, n2["theta_m_per_run"], n2["theta_slide_per_run"])
+        t = per_run_table(e, n2["theta_m_per_run"], n2["theta_slide_per_run"], below)
         tables[lab] = t
         out = {"pretilt_deg": [float(x) for x in hist], "n_runs": int(e.n_runs),
                "seeds": [int(s) for s in e.seeds], "theta_end_min": n2["theta_end_min"],
@@ -349,17 +358,19 @@ def _points(ax, x, y, color, marker, filled=None, jitter=0.05):
 
 
 def plot(data: dict, numbers: dict):
-    """(a) first onset and first slide per ensemble, (b) precursor events before the slide,
-    (c) <z>, (d) <n_m> of the quiet frames: per run (points; open: the run did not slide before
+    """(a) first onset and first slide per ensemble, (b) precursor events before the slide and
+    onsets below the study's largest pretilt angle, (c) <z>, (d) <n_m> of the quiet frames: per run (points; open: the run did not slide before
     the end of its tilt, shown at that angle in a and counted to it in b) and mean with its
     bootstrap interval (bar)."""
     labels = data["labels"]
     nens = len(labels)
     ens = numbers["ensembles"]
     onset_c, slide_c = style.OKABE_ITO["blue"], style.COLORS["avalanche"]
-    fig, axs = style.figure(1, 4, width=style.DOUBLE_COLUMN_IN, height=2.45,
-                            gridspec_kw=dict(wspace=0.42, left=0.06, right=0.99, bottom=0.2,
-                                             top=0.8))
+    below_c, below = style.OKABE_ITO["purple"], numbers.get("below_deg")
+    below = np.nan if below is None else float(below)
+    fig, axs = style.figure(1, 4, width=style.DOUBLE_COLUMN_IN, height=2.7,
+                            gridspec_kw=dict(wspace=0.42, left=0.06, right=0.99, bottom=0.19,
+                                             top=0.74))
     a, b, c, d = axs
     x = np.arange(nens, dtype=float)
     for i, lab in enumerate(labels):
@@ -373,14 +384,17 @@ def plot(data: dict, numbers: dict):
         a.text(x[i] + 0.2, 1.0, f"{int(slid.sum())}/{len(t)}\nslid",
                transform=a.get_xaxis_transform(), ha="center", va="bottom", fontsize=5.5,
                color=slide_c)
-        _points(b, x[i], t["n_precursors"], style.COLORS["quiet"], "D", filled=slid)
-        _mean_ci(b, x[i], e, "n_precursors", style.COLORS["quiet"])
+        _points(b, x[i] - 0.2, t["n_precursors"], style.COLORS["quiet"], "D", filled=slid)
+        _mean_ci(b, x[i] - 0.2, e, "n_precursors", style.COLORS["quiet"])
+        if np.isfinite(below):
+            _points(b, x[i] + 0.2, t["n_onsets_below"], below_c, "v")
+            _mean_ci(b, x[i] + 0.2, e, "n_onsets_below", below_c)
         _points(c, x[i], t["z_quiet"], style.COLORS["quiet"], "o")
         _mean_ci(c, x[i], e, "z_quiet", style.COLORS["quiet"])
         _points(d, x[i], t["n_m_quiet"], style.COLORS["quiet"], "o")
         _mean_ci(d, x[i], e, "n_m_quiet", style.COLORS["quiet"])
     names = [f"{lab}\n{len(data['tables'][lab])} runs" for lab in labels]
-    for ax, lab, ylab in ((a, "a", r"$\theta$ (deg)"), (b, "b", "precursor events"),
+    for ax, lab, ylab in ((a, "a", r"$\theta$ (deg)"), (b, "b", "onsets per run"),
                           (c, "c", r"$\langle z\rangle$ quiet frames"),
                           (d, "d", r"$\langle n_m\rangle$ quiet frames")):
         ax.set_xticks(x, names, fontsize=6)
@@ -400,9 +414,14 @@ def plot(data: dict, numbers: dict):
                       label="first large slide (mean: runs that slid)"),
                Line2D([], [], ls="none", marker="s", mfc="white", mec=slide_c, ms=4,
                       label=r"no slide: end of tilt (a), events to the end (b)"),
+               Line2D([], [], ls="none", marker="D", color=style.COLORS["quiet"], ms=3.5,
+                      label="(b) onsets before the first slide"),
+               *([Line2D([], [], ls="none", marker="v", color=below_c, ms=4,
+                         label=rf"(b) onsets below {below:g}$\degree$")]
+                 if np.isfinite(below) else []),
                Line2D([], [], ls="none", marker="_", color="k", ms=9, mew=1.6,
                       label=f"mean, {100 * data['confidence']:g}% bootstrap CI over runs")]
-    fig.legend(handles=handles, loc="upper center", ncol=4, bbox_to_anchor=(0.5, 1.0),
+    fig.legend(handles=handles, loc="upper center", ncol=3, bbox_to_anchor=(0.5, 1.0),
                handletextpad=0.3, columnspacing=1.2)
     def fmt(v, spec):
         return format(v, spec) if v is not None and np.isfinite(v) else "n/a"
