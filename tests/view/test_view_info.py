@@ -24,6 +24,10 @@ def test_info_of_a_run(tiny_run, tmp_path, capsys):
     assert f"{n} ({n - nfix} mobile, {nfix} fixed bottom)" in text
     assert f"frames     {nf}, theta 0.000 .. 20.000 deg" in text
     assert "deposition steps" in text and "0 warning(s)" in text and "kB" in text
+    with open_run(tiny_run) as run:
+        cost = run.cost
+    assert (f"ended      by theta_max; {cost['steps']} steps, {cost['sweeps']} sweeps, "
+            f"{cost['capped_steps']} capped") in text and "prepared" not in text
     # first onsets as the observables find them
     frames, _ = run_observables(tiny_run)
     th = frames.loc[frames["onset"], "theta_deg"].to_numpy()
@@ -116,3 +120,16 @@ def test_ensemble_onsets_come_from_the_observables_cache(tiny_ensemble, tmp_path
         row = rows[f"run_{seed:04d}.h5"]
         assert int(row[5]) == on.sum()
         assert row[6] == (f"{g['theta_deg'].to_numpy()[on][0]:.2f}" if on.any() else "-")
+
+
+def test_info_of_a_prepared_run_that_ended_in_its_slide(tmp_path, capsys):
+    from tiltpile.runner import simulate
+
+    cfg = config.load("smoke", overrides=["scene.n=60", "scene.box_length=10.0", "protocol.theta_max_deg=40.0",
+                                          "protocol.pretilt_deg=[2.0, 0.0]", "protocol.end_ke=1e-4",
+                                          "protocol.end_span_deg=0.5"])
+    simulate(cfg, 1, tmp_path / "r.h5", progress=False)
+    assert main(["info", str(tmp_path / "r.h5"), "--quiet"]) == 0
+    text = capsys.readouterr().out
+    assert "prepared   tilted to +2 deg (200 + " in text and ", +0 deg (200 + " in text
+    assert "ended      by the slide (protocol.end_ke); " in text

@@ -188,6 +188,8 @@ def run_summary(path, with_onsets: bool = True, progress: bool = False) -> dict:
                 "time": float(run.time[-1]) if theta.size else float("nan"),
                 "deposition": dict(run.deposition), "health": dict(run.health),
                 "jit": run.f.attrs.get("jit", ""),
+                "preparation": {k: np.asarray(v).tolist() for k, v in run.preparation.items()},
+                "end_reason": run.end_reason, "cost": dict(run.cost),
             }
             if with_onsets and run.n_frames > 1:
                 s["onsets"] = onsets(run, progress=progress)
@@ -214,6 +216,15 @@ def run_info(path, progress: bool = False) -> str:
         out.append("deposition " + ", ".join(
             f"{k} {_g(dep[k])}" for k in ("steps", "time", "height", "ke_per_grain", "max_overlap",
                                          "missed") if k in dep))
+    prep = s["preparation"]
+    if prep:
+        legs = ", ".join(f"{t:+g} deg ({n} + {hold} steps)" for t, n, hold in
+                         zip(prep["target_deg"], prep["tilt_steps"], prep["hold_steps"]))
+        out.append(f"prepared   tilted to {legs} before the ramp")
+    cost = s["cost"]
+    out.append(f"ended      by {'the slide (protocol.end_ke)' if s['end_reason'] == 'slide' else 'theta_max'}"
+               + (f"; {cost['steps']} steps, {cost['sweeps']} sweeps, {cost['capped_steps']} capped"
+                  if cost else ""))
     h = s["health"]
     if h:
         warn = h.get("warnings") or []
