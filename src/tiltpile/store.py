@@ -367,6 +367,15 @@ class RunWriter:
 
     def _create_file(self, config_json, config_hash, seed, radius, fixed, box_length, jit) -> None:
         self.f = None
+        if self.part.exists():  # a writer without our lock (an older tiltpile) holds HDF5's own lock
+            try:
+                h5py.File(self.part, "r").close()
+            except OSError as e:
+                if "lock" in str(e).lower():
+                    raise RunBusyError(
+                        f"{self.part} is being written by another process (it holds the file's HDF5 "
+                        "lock); wait for it to finish or use another output file (nothing was "
+                        "changed)") from None
         f = self.f = h5py.File(self.part, "w")
         # a checkpoint left by an earlier .part is not this one's (the digest would refuse it too)
         self.ckpt.unlink(missing_ok=True)

@@ -607,3 +607,26 @@ def test_disk_filled_by_someone_else_mid_write_is_still_one_line(tmp_path, ref, 
         assert_same_run(out, ref)
     finally:
         subprocess.run(["umount", "-l", str(mnt)])
+
+
+def test_part_held_open_by_a_writer_without_our_lock_is_not_truncated(tmp_path, tiny, monkeypatch):
+    """A writer of an older tiltpile takes no NAME.lock, only HDF5's own file lock: its .part is
+    still not truncated."""
+    out = tmp_path / "run.h5"
+    monkeypatch.setattr(store.RunWriter, "append", _dying_append(9))
+    with pytest.raises(_Killed):
+        simulate(tiny, 3, out, progress=False)
+    monkeypatch.undo()
+    checkpoint_path(out).unlink()  # not resumable: the new writer would start afresh
+    holder = subprocess.Popen([sys.executable, "-c", "import sys, h5py; f = h5py.File(sys.argv[1], 'r+'); "
+                               "print('held', flush=True); sys.stdin.read()", str(part_path(out))],
+                              stdin=subprocess.PIPE, stdout=subprocess.PIPE, text=True, env=ENV)
+    try:
+        assert holder.stdout.readline().strip() == "held"
+        before = _sha(part_path(out))  # (opening it r+ marks the file in use)
+        with pytest.raises(store.RunBusyError, match="HDF5 lock"):
+            simulate(tiny, 3, out, progress=False)
+        assert _sha(part_path(out)) == before
+    finally:
+        holder.kill()
+        holder.wait()
