@@ -67,14 +67,15 @@ def _simulate(config, seed, out, progress, resume, position, on_progress) -> dic
         writer, state = resumed
     else:
         part = store.part_path(out)
-        if part.exists():
-            reason = ("--no-resume (resume=False) was given" if not resume
-                      else why[0] if why else "it cannot be resumed")
-            warnings.warn(f"discarding {part}: {reason}; starting afresh", RuntimeWarning, stacklevel=3)
+        discarded = part.exists()
         sysm = protocol.make_system(config, seed)
         writer = RunWriter(out, config_json=config.to_json(), config_hash=config.hash(), seed=seed,
                            radius=sysm.radius, fixed=sysm.fixed, box_length=config.scene.box_length,
                            jit=flags())
+        if discarded:
+            reason = ("--no-resume (resume=False) was given" if not resume
+                      else why[0] if why else "it cannot be resumed")
+            warnings.warn(f"discarded {part}: {reason}; started afresh", RuntimeWarning, stacklevel=3)
         state = None
     start_frame = writer.n_frames
     bar = _Bar(config.protocol.theta_max_deg, seed, progress, position)

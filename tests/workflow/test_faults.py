@@ -488,7 +488,7 @@ def test_part_of_another_configuration_is_discarded_with_a_message(tmp_path, tin
         simulate(tiny, 3, out, progress=False)
     monkeypatch.undo()
     other = config.load("smoke", overrides=[*TINY[:2], "protocol.theta_max_deg=1.0"])
-    with pytest.warns(RuntimeWarning, match=r"discarding .*run.h5.part: it is a run of another configuration"):
+    with pytest.warns(RuntimeWarning, match=r"discarded .*run.h5.part: it is a run of another configuration"):
         simulate(other, 3, out, progress=False)
 
 

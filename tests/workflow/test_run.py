@@ -246,7 +246,7 @@ def test_part_file_that_changed_after_its_checkpoint_is_not_resumed(
     with h5py.File(part_path(out), "r+") as f:
         f["frames/position"][1, 0, 0] += 1e-12
     assert store.RunWriter.resume(out, cfg.hash()) is None
-    with pytest.warns(RuntimeWarning, match="discarding .*run.h5.part: its frames differ"):
+    with pytest.warns(RuntimeWarning, match="discarded .*run.h5.part: its frames differ"):
         summary = simulate(cfg, 2, out, progress=False)
     assert summary["resumed_from_frame"] is None
     assert not checkpoint_path(out).exists()
