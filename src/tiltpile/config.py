@@ -76,31 +76,19 @@ class SolverConfig:
     slide_ke: float = _f(1e-3, lo=0.0, lo_open=True,
                          doc="kinetic energy per mobile grain [m g d] above which max_iter_slide applies")
     # interleaved: the forward (key) order with no body twice within 8 places (sim/solver.py);
-    # the same sweeps per step as forward, 1.36-1.65x less time per sweep (perf/solver_micro)
+    # why it is the default: docs/performance.md ("Sweep order")
     sweep: str = _f("interleaved", choices=("alternating", "random", "forward", "interleaved"),
                     doc="contact order of the NLGS sweeps")
-    # Projected SOR (sim/solver.py). Measured on the settled bench piles while tilting at tol
-    # 1e-6 (python -m tiltpile.perf.solver_variants): forward sweeps (grains are numbered bottom-up) at relax 1.5
-    # take 2.6x (n=1000) / 1.4x (n=4000) fewer sweeps than plain random NLGS and 2.5-3.3x less
-    # time per step, leaving 2.4-4x less unbalanced force per grain; relax >= 1.7 can stall
-    # (sweeps oscillate, max_iter). The default stays 1 (plain NLGS, bit-identical to before):
-    # with 1.5 a deposition ends in a different pile and the smoke pile of the creep test
-    # (seed 3) then avalanches below 10 deg, and the stability tests that starve the solver on
-    # purpose no longer starve it (solver-speed branch report). relax 1 with sweep = "random"
-    # is the plain NLGS reference.
+    # Projected SOR (sim/solver.py); relax 1 with sweep = "random" is the plain NLGS reference.
+    # Why the default stays 1: docs/performance.md ("Numbers in the configuration's comments")
     relax: float = _f(1.0, lo=0.0, lo_open=True, hi=2.0, hi_open=True,
                       doc="over-relaxation factor omega of the local solves (projected SOR; "
                           "1 = plain NLGS)")
     # sim/solver.py "Pruned sweeps": in steps past 20 sweeps, leave out the open contacts that
-    # cannot close: 0.68-0.85x the time per capped step of the paper preset, the same sweeps
-    # bit for bit while none of them closes within a step (none has, in every run measured)
+    # cannot close (measured: docs/performance.md)
     prune: bool = _f(True, doc="sweep only the contacts that can act in steps past 20 sweeps "
                                 "(forward and interleaved sweeps)")
-    # 1e-6 d: 16x fewer sweeps per step on the 1000-grain bench pile than the plain gap term (0)
-    # at equal natural residual, 37x more drift per degree of tilt (sim/step.py "Overlap slop");
-    # 1e-6 d is 10-70x the overlaps an unconverged step leaves (1.4-2e-8 d at tol 1e-6 on that
-    # pile, 9e-8 d at the smoke tol 1e-5) and 1e-2 of the smallest length the analysis uses
-    # (lost_gap 1e-4 d).
+    # sim/step.py "Overlap slop"; why 1e-6 d: docs/performance.md
     overlap_slop: float = _f(1e-6, lo=0.0, hi=0.01,
                              doc="overlaps up to this [d] are not pushed out by the gap term")
     alert: float = _f(0.1, lo=0.0, lo_open=True, hi=1.0,
@@ -112,9 +100,8 @@ class ProtocolConfig:
     tilt_per_step_deg: float = _f(0.001, lo=0.0, lo_open=True, hi=1.0, doc="rotation of gravity per step")
     theta_max_deg: float = _f(30.0, lo=0.0, hi=90.0, doc="final inclination")
     frame_every: int = _f(50, lo=1, hi=10_000_000, doc="steps between frames")
-    # The threshold must sit above the kinetic-energy floor that an NLGS stopped at
-    # deposition_tol leaves in a pile (soft-grain breathing): measured 1e-7..4e-7 per grain for
-    # 1000 grains ~35 d deep at 1e-4, so 1e-7 was never reached in 12000 steps.
+    # above the kinetic-energy floor an NLGS stopped at deposition_tol leaves in a pile
+    # (docs/performance.md)
     rest_ke: float = _f(1e-6, lo=0.0, lo_open=True,
                         doc="deposition ends when kinetic energy per grain (m g d) stays below this")
     rest_steps: int = _f(100, lo=1, doc="... for this many consecutive steps")
@@ -137,7 +124,7 @@ class ProtocolConfig:
 
 @dataclass(frozen=True)
 class HealthConfig:
-    """Limits of the run's health checks (README "Health checks and limits").
+    """Limits of the run's health checks (docs/health.md).
 
     Every step records its largest overlap, NLGS sweeps, energy gain (kinetic energy gained
     beyond the work of gravity, which rigid perfectly inelastic frictional contacts can never
@@ -146,25 +133,12 @@ class HealthConfig:
     and ``runner.simulate`` warns once at the end; past a ``*_stop`` limit the protocol raises
     ``SimulationError``. Warn limits must not exceed stop limits.
 
-    Defaults, against what the presets measure. Smoke (seeds 1-4): largest overlap 3-6e-6 d in
-    the tilt, 1.4e-5 d in deposition; energy gain <= 7e-8 m g d per grain per step through the
-    whole tilt, avalanche included; 26-61% of the tilt steps hit max_iter (cumulative fraction at
-    most 68%), the final residual at the cap 1.5-47 times tol. Default preset (seed 1): at
-    max_iter 1000 to 22 deg 34% of the steps at the cap, overlaps <= 8e-6 d, energy gain <= 1.1e-7
-    (in the avalanche); at max_iter 2000 to 30 deg 47% and 5e-5 d; 0.3-1.3e-6 in the settling
-    steps of frame 0, which re-solve the deposited pile from deposition_tol and are not judged. For comparison a 40-60 grain pile gains 2-4e-6 per grain per step at tol 1e-3
-    and 3e-5 to 1.3e-4 at tol 1e-2 or max_iter 10; held 1000 steps at 10 deg the 60-grain pile
-    creeps 1.5e-7 d converged, 3e-3 d at tol 1e-3, 1e-2 to 9e-2 d at max_iter 50 or 10 or tol 1e-2.
-    The cap-hit fraction is cumulative over the steps at solver.tol, so it stops only a run that is
-    capped nearly everywhere; the energy limits are what catch a solver that is merely loose. The
-    energy stop also trips on overlaps pushed out in one step in small piles (in a 60-grain pile
-    an overlap of ~2e-3 d gains 1e-4 per grain), which is what a too large dt produces.
-
-    Missed-contact steps (a grain moved more than alert / 2 since the list was built) have no
-    limit of their own: a contact actually missed shows up as an overlap one step later, which
-    the overlap (and energy) limits judge; tilt-phase missed steps are always reported in the
-    warning (deposition has some even at the presets' dt: 12 in a smoke deposition, 228 in the
-    default one).
+    The cap-hit fraction is cumulative over the steps at solver.tol, so it stops only a run that
+    is capped nearly everywhere; the energy limits catch a solver that is merely loose (and, in
+    small piles, overlaps pushed out in one step: what a too large dt produces). Missed-contact
+    steps have no limit of their own: a contact actually missed shows up as an overlap one step
+    later. What the presets measure against these defaults: docs/performance.md ("Health limits
+    against the presets").
     """
 
     overlap_warn: float = _f(1e-3, lo=0.0, lo_open=True, hi=1.0,

@@ -46,7 +46,7 @@ all its later tasks. LocalCluster workers get ``NUMBA_NUM_THREADS``, ``OMP_NUM_T
 of an external cluster must be started with the same environment. A worker on a CPU unlike the
 client's (the cache is keyed by CPU) compiles once per worker process, never once per task.
 
-SLURM with dask-jobqueue (optional; not a dependency)::
+SLURM with dask-jobqueue (the ``cluster`` extra: ``pip install .[cluster]``)::
 
     from dask_jobqueue import SLURMCluster
     from tiltpile import config, ensemble

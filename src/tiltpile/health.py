@@ -8,7 +8,7 @@ attrs, ``runner.simulate``'s return value and the ensemble manifest -- whose ``w
 for each warn limit passed, how often, how badly, from which frame on, and what to change.
 ``runner.simulate`` issues them as one ``RuntimeWarning``.
 
-Limits (``config.HealthConfig``; README "Health checks and limits"):
+Limits (``config.HealthConfig``; docs/health.md):
 
 * overlap: frames whose largest overlap exceeds ``overlap_warn``; the deposition's largest
   overlap against the same limit;

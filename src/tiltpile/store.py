@@ -126,7 +126,7 @@ LAYOUT = {
 # datasets that files written before they existed lack (the reader fills energy_gain with NaN)
 OPTIONAL = frozenset({"frames/energy_gain"})
 INTEGRITY = "fletcher32"  # root attr ``integrity`` of files whose every dataset is checksummed
-# HDF5 filters of every dataset: the checksum (and the compression measured in CHANGELOG.md)
+# HDF5 filters of every dataset: the checksum (compression measured, not adopted: docs/performance.md)
 FILTERS = {"fletcher32": True}
 # A writer stops with "no space left on device" while this much space (plus twice what one
 # checkpoint interval writes) is still free: HDF5 cannot close a file whose writes failed (h5py
