@@ -68,8 +68,8 @@ class SolverConfig:
     deposition_tol: float = _f(1e-4, lo=0.0, lo_open=True, hi=1.0,
                                doc="the same during deposition (only its end state matters)")
     max_iter: int = _f(2000, lo=1, hi=10_000_000, doc="cap on NLGS sweeps per step")
-    # A cap by phase: in a large slide no affordable cap converges a step, and the flow does not
-    # depend on the cap within its chaos (docs/performance.md); before it, it does.
+    # A cap by phase, for studies: in a large slide no affordable cap converges a step. 200 is too
+    # few at the default scale (the solver creates energy: docs/performance.md); off in the presets.
     max_iter_slide: int = _f(0, lo=0, hi=10_000_000,
                              doc="cap on NLGS sweeps per tilt step while the last frame's kinetic "
                                  "energy per grain exceeds slide_ke; 0: max_iter throughout")
