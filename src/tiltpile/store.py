@@ -33,7 +33,9 @@ Layout (F frames, N grains including the fixed bottom row, C contacts over all f
     /preparation          attrs (only with protocol.pretilt_deg): target_deg, tilt_steps,
                           hold_steps, ke_per_grain, one entry per leg
     / attrs end_reason, end_theta_deg: "theta_max" or "slide" (protocol.end_ke), last frame's angle;
-            steps, sweeps, capped_steps: the whole run's time steps, NLGS sweeps and capped steps
+            steps, sweeps, capped_steps: the whole run's time steps, NLGS sweeps and capped steps;
+            seconds, resumed_from_frame: wall time of the invocation that finished the run (-1:
+            not resumed, so the whole run)
     /health               attrs (complete runs): the health summary of ``runner.simulate`` --
                           counts of flagged frames and steps, worst values, and ``warnings``
                           (JSON list of the warning texts, empty when healthy)
@@ -442,6 +444,12 @@ class RunWriter:
                             steps=int(ended.steps), sweeps=int(ended.sweeps),
                             capped_steps=int(ended.capped_steps))
 
+    def write_timing(self, seconds: float, resumed_from_frame: int | None) -> None:
+        """Wall seconds of the invocation that finished the run (root attr ``seconds``) and, if it
+        resumed an interrupted one, the frame it resumed from (``resumed_from_frame``, else -1)."""
+        self.f.attrs.update(seconds=float(seconds),
+                            resumed_from_frame=-1 if resumed_from_frame is None else int(resumed_from_frame))
+
     def frame_columns(self, names) -> dict:
         """Per-frame scalar columns written so far (e.g. for the health summary at the end)."""
         return {name: self.f["frames"][name][()] for name in names}
@@ -726,6 +734,8 @@ class Run:
         self.end_reason = str(a.get("end_reason", "theta_max"))  # files before the end-of-run rule
         # the run's solver work (files before it was counted: absent)
         self.cost = {k: int(a[k]) for k in ("steps", "sweeps", "capped_steps") if k in a}
+        if "seconds" in a:  # wall time of the invocation that finished it
+            self.cost.update(seconds=float(a["seconds"]), resumed_from_frame=int(a["resumed_from_frame"]))
         h = self.f.get("health")
         self.health = {k: json.loads(v) if k == "warnings" else v
                        for k, v in (h.attrs.items() if h is not None else ())}

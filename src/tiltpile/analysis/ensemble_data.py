@@ -70,19 +70,36 @@ def load_ensemble(data_dir, preset: str | None = None, **analysis_params) -> Ens
     files = run_files(data_dir)
     if not files:
         raise FileNotFoundError(f"no run_*.h5 files in {data_dir}: run `tiltpile ensemble` first")
-    hashes, seeds, cfg = set(), [], None
+    hashes, seeds, cfg, costs = set(), [], None, []
     for f in files:
         with open_run(f) as r:
             hashes.add(r.config_hash)
             seeds.append(r.seed)
             cfg = r.config
+            costs.append(dict(r.cost))
     if len(hashes) > 1:
         raise ValueError(f"{data_dir} mixes runs of {len(hashes)} configurations")
     frames, clusters = load_observables(data_dir, progress=False, **analysis_params)
     meta = {"preset": preset, "n_runs": len(seeds), "seeds": seeds, "n_grains": cfg["scene"]["n"],
             "config_hash": hashes.pop()[:12], "tiltpile_version": __version__,
-            "analysis": dict(analysis_params)}
+            "analysis": dict(analysis_params), "cost": ensemble_cost(costs)}
     return Ensemble(data_dir, frames, clusters, cfg, seeds, meta)
+
+
+def ensemble_cost(costs: list[dict]) -> dict:
+    """What the runs cost, from each run file's ``Run.cost``: per run, the median wall seconds of
+    the runs simulated in one invocation (``seconds_per_run``; a resumed run's seconds cover only
+    its last part, so it is left out), and the mean time steps, NLGS sweeps and capped steps.
+    Keys are None where no run file records them (files written before they were counted)."""
+    def mean(key):
+        x = [c[key] for c in costs if key in c]
+        return float(np.mean(x)) if x else None
+
+    whole = [c["seconds"] for c in costs if "seconds" in c and c.get("resumed_from_frame", -1) < 0]
+    return {"runs_timed": len(whole),
+            "seconds_per_run": float(np.median(whole)) if whole else None,
+            "steps_per_run": mean("steps"), "sweeps_per_run": mean("sweeps"),
+            "capped_steps_per_run": mean("capped_steps")}
 
 
 def first_onsets(frames: pd.DataFrame, seeds) -> np.ndarray:
