@@ -28,6 +28,11 @@ def test_guard_table_and_chart(smoke_run, tmp_path):
     assert (out / "guard.csv").exists() and (out / "guard.png").stat().st_size > 10_000
     assert list(t["setting"]) == ["reference", "reference"] and list(t["seconds_median"]) == [10.0, 4.0]
     assert t["cap_hits_mean"].tolist() == [7.0, 7.0]
+    from tiltpile.store import open_run
+
+    with open_run(path) as run:
+        assert t["sweeps_per_run"].tolist() == [run.cost["sweeps"]] * 2
+    assert t["runs_failed"].tolist() == [0, 0]
     # the same run in both: every number equal, shifts zero
     for m in guard.METRICS:
         assert t[f"{m}_mean"][0] == t[f"{m}_mean"][1] or np.isnan(t[f"{m}_mean"][0])

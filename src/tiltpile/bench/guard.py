@@ -34,14 +34,26 @@ LABELS = {"theta_m": "first onset theta_m", "z_quiet": "<z> quiet", "n_m_quiet":
 
 
 def cost(data_dir) -> dict:
-    """Median and mean seconds per finished run and mean capped steps per run (manifest)."""
+    """Median and mean seconds per finished run and mean capped steps per run (manifest); mean
+    NLGS sweeps per run from the run files that record them (NaN if none does)."""
+    from tiltpile.analysis.ensemble_data import ensemble_cost
+    from tiltpile.analysis.observables import run_files
+    from tiltpile.store import open_run
+
     m = json.loads((Path(data_dir) / "ensemble.json").read_text())
     runs = [r for r in m["runs"].values() if r.get("status") == "done" and r.get("seconds")]
     sec = np.array([r["seconds"] for r in runs], float)
     caps = np.array([r.get("cap_hits", np.nan) for r in runs], float)
-    return dict(runs_done=len(runs), seconds_median=float(np.median(sec)) if sec.size else np.nan,
+    costs = []
+    for f in run_files(data_dir):
+        with open_run(f) as r:
+            costs.append(dict(r.cost))
+    sweeps = ensemble_cost(costs)["sweeps_per_run"]
+    failed = sum(r.get("status") == "failed" for r in m["runs"].values())
+    return dict(runs_done=len(runs), runs_failed=failed, seconds_median=float(np.median(sec)) if sec.size else np.nan,
                 seconds_mean=float(sec.mean()) if sec.size else np.nan,
-                cap_hits_mean=float(np.nanmean(caps)) if caps.size else np.nan)
+                cap_hits_mean=float(np.nanmean(caps)) if caps.size else np.nan,
+                sweeps_per_run=np.nan if sweeps is None else sweeps)
 
 
 def table(dirs) -> pd.DataFrame:
@@ -73,13 +85,17 @@ def plot(t: pd.DataFrame, path: Path) -> None:
     for ax, m in zip(axes, METRICS):
         for k, r in t.iterrows():
             y = abs(r[f"{m}_sigma"]) if k else 0.0
+            label = r["setting"] + (f" ({r['runs_failed']} of {r['runs_done'] + r['runs_failed']} runs "
+                                    "failed, left out)" if r["runs_failed"] else "")
             ax.plot(r["seconds_median"], y, markers[k % len(markers)], ms=7,
-                    label=r["setting"] if m == METRICS[0] else None, color=f"C{k}")
+                    label=label if m == METRICS[0] else None, color=f"C{k}")
         for level, ls in ((1, ":"), (2, "--")):
             ax.axhline(level, color="0.5", ls=ls, lw=0.8)
         ax.set_title(LABELS[m], fontsize=9)
         ax.set_xlabel("median seconds per run")
     axes[0].set_ylabel("|shift| / combined standard error")
+    fig.suptitle("Accuracy guard: each setting against the reference ensemble (run seconds depend on "
+                 "the machine's load at the time; sweeps in guard.csv)", fontsize=8)
     fig.legend(loc="outside lower center", ncol=min(len(t), 3), fontsize=8, frameon=False)
     fig.savefig(path, dpi=130)
     plt.close(fig)
