@@ -133,6 +133,14 @@ def test_numbers_equal_the_analysis_run_by_run(study):
             th = g["theta_deg"].to_numpy(float)
             sl = first_slide(th, g["ke_trans"].to_numpy(float), thr, out["slide_sustain_deg"])
             assert pr["theta_first_slide"][k] == pytest.approx(sl, nan_ok=True)
+            # and with the reference ensemble's threshold
+            ref_ke = numbers["ensembles"]["fresh"]["slide_ke"]
+            assert numbers["slide_ke_reference"] == ref_ke
+            sl_ref = first_slide(th, g["ke_trans"].to_numpy(float), ref_ke,
+                                 out["slide_sustain_deg"])
+            assert pr["theta_first_slide_ref_ke"][k] == pytest.approx(sl_ref, nan_ok=True)
+            assert pr["n_precursors_ref_ke"][k] == preparation.precursor_count(
+                th, g["onset"].to_numpy(bool), g["avalanching"].to_numpy(bool), sl_ref)
             quiet = ~g["avalanching"].to_numpy(bool)
             assert pr["z_quiet"][k] == pytest.approx(g["z"][quiet].mean())
             assert pr["n_m_quiet"][k] == pytest.approx(g["n_m"][quiet].mean())

@@ -37,7 +37,7 @@ import numpy as np
 import pandas as pd
 
 from tiltpile.analysis import stats as _st
-from tiltpile.analysis.avalanche import stretches
+from tiltpile.analysis.avalanche import run_onsets, stretches
 from tiltpile.analysis.observables import run_files
 
 from . import fig2, style
@@ -50,6 +50,7 @@ PER_RUN = {
     "theta_first_slide": "first large slide (deg; NaN: none before the end of the tilt)",
     "n_precursors": "onsets whose avalanche ends before the first slide (or before the end)",
     "n_onsets_below": "onsets below the largest pretilt angle of the study (below_deg)",
+    "n_onsets": "all onsets of the ramp (to the end of the tilt; no slide threshold involved)",
     "z_quiet": "mean z of the quiet frames (bulk, force contacts)",
     "n_m_quiet": "mean n_m of the quiet frames",
 }
@@ -275,8 +276,13 @@ def compute(ens_list, labels, histories=None, confidence: float = 0.95, **fig2_k
         lost_bimodality            Fig. 2b's: delta_bic, ashman_d, valley_depth, valley, ...
         lost_zero_fraction         fraction of the frames that lose no contact
         theta_m_mean_fig2          Fig. 2's theta_m_mean of the same ensemble (check)
-      differences                  {label: {q: diff_ci(ensemble, reference)}} for q in PER_RUN,
-                                   each prepared ensemble against the reference
+        theta_first_slide_ref_ke_mean, n_precursors_ref_ke_mean (+ CI, per_run),
+        n_runs_with_slide_ref_ke   the first slide and the precursors before it with the
+                                   reference ensemble's threshold (slide_ke_reference) instead
+                                   of the ensemble's own
+      differences                  {label: {q: diff_ci(ensemble, reference)}} for q in PER_RUN
+                                   and the two _ref_ke quantities, each prepared ensemble
+                                   against the reference
     """
     ens_list = list(ens_list)
     labels = [str(x) for x in labels]
@@ -314,10 +320,35 @@ def compute(ens_list, labels, histories=None, confidence: float = 0.95, **fig2_k
                    lost_zero_fraction=n2["lost_zero_fraction"],
                    theta_m_mean_fig2=n2["theta_m_mean"])
         numbers["ensembles"][lab] = out
+    # the slide again with the reference's kinetic-energy threshold for every ensemble: each
+    # ensemble's own Fig. 2a threshold differs, and a lower one finds slides earlier and more often
+    ref_ke = numbers["ensembles"][labels[0]]["slide_ke"]
+    numbers["slide_ke_reference"] = ref_ke
+    for e, lab in zip(ens_list, labels):
+        out = numbers["ensembles"][lab]
+        if np.isfinite(ref_ke):
+            ro = run_onsets(e.frames, float(ref_ke), float(out["slide_sustain_deg"])
+                            ).set_index("run")
+            sl = np.array([float(ro["theta_first_slide"].get(s, np.nan)) for s in e.seeds])
+        else:
+            sl = np.full(e.n_runs, np.nan)
+        f = e.frames.sort_values(["run", "frame"], kind="stable")
+        npre = np.array([precursor_count(g["theta_deg"].to_numpy(float), g["onset"].to_numpy(bool),
+                                         g["avalanching"].to_numpy(bool), sl[k])
+                         for k, g in ((k, f[f["run"] == s]) for k, s in enumerate(e.seeds))],
+                        dtype=float)
+        out["n_runs_with_slide_ref_ke"] = int(np.isfinite(sl).sum())
+        for q, v in (("theta_first_slide_ref_ke", sl), ("n_precursors_ref_ke", npre)):
+            tables[lab][q] = v
+            out["per_run"][q] = v.tolist()
+            ci = _st.bootstrap_ci(v, confidence=confidence)
+            out.update({f"{q}_mean": ci["estimate"], f"{q}_ci_low": ci["low"],
+                        f"{q}_ci_high": ci["high"]})
     ref = tables[labels[0]]
     for lab in labels[1:]:
         numbers["differences"][lab] = {q: diff_ci(tables[lab][q], ref[q], confidence=confidence)
-                                       for q in PER_RUN}
+                                       for q in list(PER_RUN) + ["theta_first_slide_ref_ke",
+                                                                 "n_precursors_ref_ke"]}
     data = {"labels": labels, "tables": tables, "confidence": confidence,
             "n_grains": [e.meta.get("n_grains") for e in ens_list]}
     return numbers, data
@@ -359,9 +390,9 @@ def _points(ax, x, y, color, marker, filled=None, jitter=0.05):
 
 def plot(data: dict, numbers: dict):
     """(a) first onset and first slide per ensemble, (b) precursor events before the slide and
-    onsets below the study's largest pretilt angle, (c) <z>, (d) <n_m> of the quiet frames: per run (points; open: the run did not slide before
-    the end of its tilt, shown at that angle in a and counted to it in b) and mean with its
-    bootstrap interval (bar)."""
+    onsets below the study's largest pretilt angle, (c) <z>, (d) <n_m> of the quiet frames: per
+    run (points; open: the run did not slide before the end of its tilt, shown at that angle in
+    a and counted to it in b) and mean with its bootstrap interval (bar)."""
     labels = data["labels"]
     nens = len(labels)
     ens = numbers["ensembles"]
@@ -369,7 +400,7 @@ def plot(data: dict, numbers: dict):
     below_c, below = style.OKABE_ITO["purple"], numbers.get("below_deg")
     below = np.nan if below is None else float(below)
     fig, axs = style.figure(1, 4, width=style.DOUBLE_COLUMN_IN, height=2.7,
-                            gridspec_kw=dict(wspace=0.42, left=0.06, right=0.99, bottom=0.19,
+                            gridspec_kw=dict(wspace=0.42, left=0.06, right=0.99, bottom=0.22,
                                              top=0.74))
     a, b, c, d = axs
     x = np.arange(nens, dtype=float)
@@ -430,6 +461,14 @@ def plot(data: dict, numbers: dict):
         f"{lab}: Ashman D = {fmt(ens[lab]['lost_bimodality']['ashman_d'], '.1f')}, valley "
         f"{fmt(ens[lab]['lost_bimodality']['valley_depth'], '.2f')}, no contact lost in "
         f"{fmt(100 * ens[lab]['lost_zero_fraction'], '.0f')}% of frames" for lab in labels)
+    ref_ke = numbers.get("slide_ke_reference")
+    sl = "; ".join(f"{lab} {ens[lab]['n_runs_with_slide_ref_ke']}/{ens[lab]['n_runs']} slid, "
+                   f"{fmt(ens[lab]['n_precursors_ref_ke_mean'], '.1f')} onsets before"
+                   for lab in labels if "n_runs_with_slide_ref_ke" in ens[lab])
+    if ref_ke is not None and np.isfinite(ref_ke) and sl:
+        bm += ("\nslide KE threshold (Fig. 2a): "
+               + ", ".join(f"{ens[lab]['slide_ke']:.1e}" for lab in labels)
+               + f"; at the reference's {ref_ke:.1e}: " + sl)
     fig.text(0.5, 0.005, "Fig. 2b two populations -- " + bm, ha="center", va="bottom",
              fontsize=5.5)
     return fig
