@@ -106,7 +106,8 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
     figs = load_figures(figures_dir)
     if not figs:
         raise FileNotFoundError(f"no fig*.json in {figures_dir}: run the figure notebooks first")
-    text = render(figs, CLAIMS if claims is None else claims, render_scales(figures_dir))
+    text = render(figs, CLAIMS if claims is None else claims,
+                  render_scales(figures_dir) + render_preparation(figures_dir))
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.tmp")
@@ -601,4 +602,59 @@ def render_scales(figures_dir) -> list[str]:
     for k in keys:
         lines.append(f"| {k} | " + " | ".join(
             (c.get(k, "n/a") if c else "not yet run") for c in cols.values()) + " |")
+    return lines
+
+
+QUIET_WINDOW_DEG = 14.4  # the paper's Fig. 5 shows clusters this far before an onset
+
+
+def render_preparation(figures_dir) -> list[str]:
+    """Markdown lines: the preparation study (``preparation.json`` of ``figures_dir``, written by
+    ``make preparation``), one row per ensemble; [] when the study has not been run."""
+    p = Path(figures_dir) / "preparation.json"
+    if not p.exists():
+        return []
+    n = json.loads(p.read_text())["numbers"]
+
+    def ci(e, key, fmt):
+        m, lo, hi = (_num(e.get(f"{key}_{x}")) for x in ("mean", "ci_low", "ci_high"))
+        if not math.isfinite(m):
+            return "n/a"
+        return f"{m:{fmt}} [{lo:{fmt}}, {hi:{fmt}}]" if math.isfinite(lo) else f"{m:{fmt}}"
+
+    lines = ["", "## Which pile did the paper analyse? Preparation histories", "",
+             "From `preparation.json` (`make preparation PREP_DIRS=...`): the same preset, piles "
+             "tilted back and forth before the analysed ramp (`protocol.pretilt_deg`) against "
+             f"fresh ones ({n['reference']}, the reference); mean [95% bootstrap interval over runs]. "
+             f"The paper's Fig. 5 needs runs whose first onset comes after {QUIET_WINDOW_DEG} deg.", "",
+             "| preparation | runs | first 2% onset (deg) | runs quiet past 14.4 deg | first slide (deg; runs that slid) "
+             f"| onsets below {n.get('below_deg', float('nan')):g} deg | <z> quiet | <n_m> quiet | Fig. 2b Ashman D |",
+             "|---|---|---|---|---|---|---|---|---|"]
+    best, best_n = None, -1
+    for label, e in n["ensembles"].items():
+        onsets = [x for x in e["per_run"]["theta_first_onset"] if x is not None]
+        quiet = sum(x >= QUIET_WINDOW_DEG for x in onsets)
+        if quiet > best_n:
+            best, best_n = label, quiet
+        bim = e.get("lost_bimodality") or {}
+        lines.append(
+            f"| {label} | {e['n_runs']} | {ci(e, 'theta_first_onset', '.2f')} | {quiet} of {e['n_runs']} "
+            f"| {ci(e, 'theta_first_slide', '.2f')} ({e.get('n_runs_with_slide')}) "
+            f"| {ci(e, 'n_onsets_below', '.2f')} | {ci(e, 'z_quiet', '.3f')} | {ci(e, 'n_m_quiet', '.4f')} "
+            f"| {_f(_num(bim.get('ashman_d')), '.2f')} |")
+    ref = n["ensembles"][n["reference"]]
+    lines.append("")
+    if best_n > 0:
+        lines.append(f"**{best}** brings the most runs past the paper's {QUIET_WINDOW_DEG} deg before their "
+                     f"first onset ({best_n} of {n['ensembles'][best]['n_runs']}; fresh piles: "
+                     f"{sum(x is not None and x >= QUIET_WINDOW_DEG for x in ref['per_run']['theta_first_onset'])}).")
+    else:
+        lines.append(f"No preparation studied brings a run past {QUIET_WINDOW_DEG} deg before its first "
+                     "onset; the differences from the fresh piles (first onset, onsets below the "
+                     "preparation's amplitude) show how far each goes.")
+    for label, dd in n.get("differences", {}).items():
+        d = dd.get("theta_first_onset")
+        if d:
+            lines.append(f"- {label}: first onset {d['estimate']:+.2f} deg [{d['low']:+.2f}, {d['high']:+.2f}] "
+                         "against the fresh piles.")
     return lines

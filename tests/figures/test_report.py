@@ -141,3 +141,25 @@ def test_scales_table_says_not_yet_run(tmp_path):
     assert row.count("not yet run") == 2 and "9.7 [8.1, 10.9]" in row
     assert "## How each claim is tested" in text
     assert all(c.key in report.RULES for c in report.CLAIMS)
+
+
+def test_preparation_section_counts_runs_quiet_past_the_papers_window(tmp_path):
+    from tiltpile.report import render_preparation
+
+    assert render_preparation(tmp_path) == []  # no study run: no section
+
+    def ens(onsets):
+        return {"n_runs": len(onsets), "per_run": {"theta_first_onset": onsets},
+                "theta_first_onset_mean": 1.0, "theta_first_onset_ci_low": 0.5,
+                "theta_first_onset_ci_high": 1.5, "n_runs_with_slide": 1}
+
+    doc = {"numbers": {"reference": "fresh", "below_deg": 15.0,
+                       "ensembles": {"fresh": ens([9.0, 10.0, None]), "prepared": ens([14.4, 16.0, 12.0])},
+                       "differences": {"prepared": {"theta_first_onset": {"estimate": 3.1, "low": 1.0,
+                                                                          "high": 5.0}}}}}
+    (tmp_path / "preparation.json").write_text(json.dumps(doc))
+    text = "\n".join(render_preparation(tmp_path))
+    assert "| fresh | 3 | 1.00 [0.50, 1.50] | 0 of 3 |" in text
+    assert "| prepared | 3 | 1.00 [0.50, 1.50] | 2 of 3 |" in text
+    assert "**prepared** brings the most runs past the paper's 14.4 deg" in text and "(2 of 3; fresh piles: 0)" in text
+    assert "- prepared: first onset +3.10 deg [+1.00, +5.00]" in text
