@@ -14,7 +14,6 @@ reported as "not measured" (the report never fails silently on a missing figure:
 
 from __future__ import annotations
 
-import argparse
 import json
 import math
 from dataclasses import dataclass
@@ -114,14 +113,6 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
     tmp.write_text(text)
     tmp.replace(out)
     return out
-
-
-def add_parser(subparsers) -> argparse.ArgumentParser:
-    p = subparsers.add_parser("report", help="write the reproduction report from the figures' JSON")
-    p.add_argument("--figures", default="figures", help="directory with fig*.json (default figures)")
-    p.add_argument("--out", default="paper/REPRODUCTION.md", help="Markdown file to write")
-    p.set_defaults(func=lambda a: print(write_report(a.figures, a.out)) or 0)
-    return p
 
 
 # ------------------------------------------------------------------------------------------------
