@@ -618,6 +618,8 @@ def render_preparation(figures_dir) -> list[str]:
              "tilted back and forth before the analysed ramp (`protocol.pretilt_deg`) against "
              f"fresh ones ({n['reference']}, the reference); mean [95% bootstrap interval over runs]. "
              f"The paper's Fig. 5 needs runs whose first onset comes after {QUIET_WINDOW_DEG} deg.", "",
+             "Slides are detected at the fresh piles' Fig. 2a kinetic-energy threshold for every "
+             "ensemble (a prepared ensemble's own threshold can sit at the level of precursors).", "",
              "| preparation | runs | first 2% onset (deg) | runs quiet past 14.4 deg | first slide (deg; runs that slid) "
              f"| onsets below {n.get('below_deg', float('nan')):g} deg | <z> quiet | <n_m> quiet | Fig. 2b Ashman D |",
              "|---|---|---|---|---|---|---|---|---|"]
@@ -628,9 +630,10 @@ def render_preparation(figures_dir) -> list[str]:
         if quiet > best_n:
             best, best_n = label, quiet
         bim = e.get("lost_bimodality") or {}
+        slide = "theta_first_slide_ref_ke" if "theta_first_slide_ref_ke_mean" in e else "theta_first_slide"
         lines.append(
             f"| {label} | {e['n_runs']} | {ci(e, 'theta_first_onset', '.2f')} | {quiet} of {e['n_runs']} "
-            f"| {ci(e, 'theta_first_slide', '.2f')} ({e.get('n_runs_with_slide')}) "
+            f"| {ci(e, slide, '.2f')} ({e.get('n_runs_with_slide' + slide[len('theta_first_slide'):])}) "
             f"| {ci(e, 'n_onsets_below', '.2f')} | {ci(e, 'z_quiet', '.3f')} | {ci(e, 'n_m_quiet', '.4f')} "
             f"| {_f(_num(bim.get('ashman_d')), '.2f')} |")
     ref = n["ensembles"][n["reference"]]

@@ -424,7 +424,8 @@ def plot(data: dict, numbers: dict):
         _mean_ci(c, x[i], e, "z_quiet", style.COLORS["quiet"])
         _points(d, x[i], t["n_m_quiet"], style.COLORS["quiet"], "o")
         _mean_ci(d, x[i], e, "n_m_quiet", style.COLORS["quiet"])
-    names = [f"{lab}\n{len(data['tables'][lab])} runs" for lab in labels]
+    # one word per line, so that the labels of neighbouring ensembles never overlap
+    names = ["\n".join(lab.split()) + f"\n{len(data['tables'][lab])} runs" for lab in labels]
     for ax, lab, ylab in ((a, "a", r"$\theta$ (deg)"), (b, "b", "onsets per run"),
                           (c, "c", r"$\langle z\rangle$ quiet frames"),
                           (d, "d", r"$\langle n_m\rangle$ quiet frames")):
