@@ -133,3 +133,15 @@ def test_info_of_a_prepared_run_that_ended_in_its_slide(tmp_path, capsys):
     text = capsys.readouterr().out
     assert "prepared   tilted to +2 deg (200 + " in text and ", +0 deg (200 + " in text
     assert "ended      by the slide (protocol.end_ke); " in text
+
+
+def test_info_into_a_closed_pipe_is_quiet(tiny_run):
+    """`tiltpile info RUN | head -1`: the reader goes away; no error line, exit status 0."""
+    import subprocess
+    import sys
+
+    p = subprocess.run(f"{sys.executable} -m tiltpile info {tiny_run} --quiet | head -c 10",
+                       shell=True, capture_output=True, text=True, executable="/bin/bash",
+                       env={"PATH": "/usr/bin:/bin", "PYTHONUNBUFFERED": "1",
+                            "NUMBA_CACHE_DIR": __import__("os").environ.get("NUMBA_CACHE_DIR", "")})
+    assert p.stdout == "run file  " and p.stderr == ""

@@ -84,6 +84,10 @@ def _run(args) -> int:
 
     try:
         return args.func(args)
+    except BrokenPipeError:  # the reader went away (`tiltpile info RUN | head`): not an error
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())  # so that the interpreter's final flush stays quiet
+        return 0
     except (cfgmod.ConfigError, RunBusyError, RunExistsError, MixedConfigError) as e:  # refused: nothing was done
         print(f"tiltpile {args.command}: error: {_one_line(e)}", file=sys.stderr)
         return 2
