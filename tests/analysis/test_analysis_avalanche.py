@@ -190,3 +190,21 @@ def test_run_table_takes_the_slide_parameters_of_the_analysis():
             ob.run_table(fr, **bad)
     # the slide parameters do not make the per-frame caches stale
     assert "slide_ke" not in ob._source_meta(Path(__file__), ob._params({}))["params"]
+
+
+def test_precursor_count_known_answers():
+    from tiltpile.analysis.avalanche import precursor_count
+
+    th = 0.1 * np.arange(12)
+    av = np.zeros(12, bool)
+    av[[2, 3, 6, 9, 10, 11]] = True         # avalanches at 0.2-0.3, 0.6, 0.9-1.1
+    on = np.zeros(12, bool)
+    on[[2, 6, 9]] = True
+    assert precursor_count(th, on, av, np.nan) == 3       # no slide: every onset
+    assert precursor_count(th, on, av, 1.0) == 2          # 0.9-1.1 runs into it
+    assert precursor_count(th, on, av, 0.9) == 2          # slide starts with it
+    assert precursor_count(th, on, av, 0.6) == 1          # 0.6 is the slide's own
+    assert precursor_count(th, on, av, 0.3) == 0          # still running at 0.3
+    assert precursor_count(th, on, av, 0.35) == 1
+    with pytest.raises(ValueError, match="differ in length"):
+        precursor_count(th, on[:-1], av, 1.0)

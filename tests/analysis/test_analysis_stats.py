@@ -305,3 +305,14 @@ def test_fd_bins_per_decade_follows_the_spread_and_sample_size():
     assert st.fd_bins_per_decade(narrow) > st.fd_bins_per_decade(wide)
     assert st.fd_bins_per_decade(wide, lo=3, hi=20) >= 3
     assert st.fd_bins_per_decade([1e-3, 1e-3, 1e-3, 1e-3]) == 3      # no spread: the floor
+
+
+def test_diff_ci():
+    from tiltpile.analysis.stats import diff_ci
+
+    x, y = np.array([10.0, 11.0, 12.0, 13.0]), np.array([7.0, 8.0, 9.0])
+    r = diff_ci(x, y)
+    assert r["estimate"] == pytest.approx(3.5)
+    assert r["low"] < 3.5 < r["high"] and r["high"] - r["low"] < 4.0
+    assert (r["n_x"], r["n_y"]) == (4, 3)
+    assert np.isnan(diff_ci([1.0], y)["low"])

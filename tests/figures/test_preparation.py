@@ -72,31 +72,6 @@ def test_history_labels():
     assert preparation.history_label([10.0, -5.0, 0.0]) == "pretilt 10/-5/0°"
 
 
-def test_precursor_count_known_answers():
-    th = 0.1 * np.arange(12)
-    av = np.zeros(12, bool)
-    av[[2, 3, 6, 9, 10, 11]] = True         # avalanches at 0.2-0.3, 0.6, 0.9-1.1
-    on = np.zeros(12, bool)
-    on[[2, 6, 9]] = True
-    assert preparation.precursor_count(th, on, av, np.nan) == 3       # no slide: every onset
-    assert preparation.precursor_count(th, on, av, 1.0) == 2          # 0.9-1.1 runs into it
-    assert preparation.precursor_count(th, on, av, 0.9) == 2          # slide starts with it
-    assert preparation.precursor_count(th, on, av, 0.6) == 1          # 0.6 is the slide's own
-    assert preparation.precursor_count(th, on, av, 0.3) == 0          # still running at 0.3
-    assert preparation.precursor_count(th, on, av, 0.35) == 1
-    with pytest.raises(ValueError, match="differ in length"):
-        preparation.precursor_count(th, on[:-1], av, 1.0)
-
-
-def test_diff_ci():
-    x, y = np.array([10.0, 11.0, 12.0, 13.0]), np.array([7.0, 8.0, 9.0])
-    r = preparation.diff_ci(x, y)
-    assert r["estimate"] == pytest.approx(3.5)
-    assert r["low"] < 3.5 < r["high"] and r["high"] - r["low"] < 4.0
-    assert (r["n_x"], r["n_y"]) == (4, 3)
-    assert np.isnan(preparation.diff_ci([1.0], y)["low"])
-
-
 # ---------------------------------------------------------------------------------------------
 # the study on simulated ensembles
 

@@ -343,3 +343,27 @@ def run_onsets(frames: pd.DataFrame, ke_threshold: float, sustain_deg: float,
     cols = ["run", "n_frames", "theta_end", "n_onsets", "theta_first_onset", "theta_first_slide",
             "slide_minus_onset", "ke_max"]
     return pd.DataFrame(rows, columns=cols)
+
+
+def precursor_count(theta_deg, onset, avalanching, theta_slide: float) -> int:
+    """Precursor events of one run: its onsets whose avalanche ends before its first slide.
+
+    theta_deg, onset, avalanching: one run's frames in order (deg, bool, bool); theta_slide: its
+    first slide (deg; NaN: none). An onset counts when the avalanching stretch it starts ends
+    (its last frame) at theta < theta_slide: an avalanche still running when the slide begins is
+    the slide's own start. With no slide every onset counts.
+    """
+    th = np.asarray(theta_deg, dtype=float)
+    on = np.asarray(onset, dtype=bool)
+    av = np.asarray(avalanching, dtype=bool)
+    if not (th.shape == on.shape == av.shape):
+        raise ValueError("precursor_count: theta_deg, onset and avalanching differ in length")
+    av = av | on
+    idx = np.flatnonzero(on)
+    if not np.isfinite(theta_slide):
+        return int(idx.size)
+    starts, ends = stretches(av)
+    last = np.empty(th.size, dtype=int)                # last frame of the stretch holding k
+    for s, e in zip(starts, ends):
+        last[s:e] = e - 1
+    return int(sum(th[last[i]] < theta_slide - 1e-9 for i in idx))

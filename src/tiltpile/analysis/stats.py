@@ -930,3 +930,30 @@ def bootstrap_runs_ci(groups: list, statistic, confidence: float = 0.95, n_resam
     return {"estimate": est, "low": float(lo), "high": float(hi), "n": int(k),
             "n_resamples": int(vals.size), "n_failed": int(vals.size - ok.size),
             "confidence": float(confidence), "method": "percentile"}
+
+
+def diff_ci(x, y, confidence: float = 0.95, n_resamples: int = 9999, seed: int = 0) -> dict:
+    """mean(x) - mean(y) of two independent sets of per-run values (NaN dropped) with a
+    percentile bootstrap interval (scipy.stats.bootstrap, each set resampled on its own).
+    Fewer than 2 values in a set: the interval is NaN. Returns dict estimate, low, high, n_x,
+    n_y, confidence."""
+    from scipy import stats as _sst
+    x = np.asarray(x, dtype=float).ravel()
+    y = np.asarray(y, dtype=float).ravel()
+    x, y = x[np.isfinite(x)], y[np.isfinite(y)]
+    est = float(x.mean() - y.mean()) if x.size and y.size else np.nan
+    out = {"estimate": est, "low": np.nan, "high": np.nan, "n_x": int(x.size), "n_y": int(y.size),
+           "confidence": float(confidence)}
+    if x.size < 2 or y.size < 2:
+        return out
+    if np.ptp(x) == 0 and np.ptp(y) == 0:
+        out.update(low=est, high=est)
+        return out
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = _sst.bootstrap((x, y), lambda a, b: np.mean(a) - np.mean(b), paired=False,
+                             confidence_level=confidence, n_resamples=n_resamples,
+                             method="percentile", vectorized=False,
+                             rng=np.random.default_rng(seed))
+    out.update(low=float(res.confidence_interval.low), high=float(res.confidence_interval.high))
+    return out

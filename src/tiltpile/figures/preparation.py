@@ -11,7 +11,7 @@ ensembles -- the first one is the reference, normally fresh piles -- run by run:
   ensemble: its slide threshold is that ensemble's Fig. 2a kinetic-energy threshold unless the
   analysis parameter ``slide_ke`` is set, its least span ``slide_sustain_deg``);
 * the precursor events: onsets by the cutoff whose avalanche (the stretch of avalanching frames
-  it starts) ends before the first slide begins (:func:`precursor_count`); for a run without a
+  it starts) ends before the first slide begins (:func:`tiltpile.analysis.avalanche.precursor_count`); for a run without a
   slide, every onset before the end of the tilt (such runs are marked: a lower bound on what a
   longer tilt would count); and the onsets below the study's largest pretilt angle (a pile
   tilted there before should rearrange less below it);
@@ -22,7 +22,7 @@ depth, delta BIC; :func:`tiltpile.analysis.stats.bimodality` as Fig. 2 applies i
 fraction of frames losing no contact. Means over runs carry bootstrap intervals
 (:func:`tiltpile.analysis.stats.bootstrap_ci`, BCa, 9999 resamples, seed 0); each prepared
 ensemble's difference of means from the reference carries a two-sample percentile bootstrap
-interval (:func:`diff_ci`; the runs of each ensemble resampled independently).
+interval (:func:`tiltpile.analysis.stats.diff_ci`; the runs of each ensemble resampled independently).
 
 A run without slide before the end of its tilt has no slide angle: the slide mean is over the
 runs that slid (``n_runs_with_slide`` says how many), which favours early slides when few slid.
@@ -30,14 +30,14 @@ runs that slid (``n_runs_with_slide`` says how many), which favours early slides
 
 from __future__ import annotations
 
-import warnings
 from pathlib import Path
 
 import numpy as np
 import pandas as pd
 
 from tiltpile.analysis import stats as _st
-from tiltpile.analysis.avalanche import run_onsets, stretches
+from tiltpile.analysis.avalanche import precursor_count, run_onsets
+from tiltpile.analysis.stats import diff_ci
 from tiltpile.analysis.observables import run_files
 
 from . import fig2, style
@@ -152,30 +152,6 @@ def load(data_dirs, labels=None, **analysis_params) -> tuple[list, list[str], li
 # per-run numbers
 
 
-def precursor_count(theta_deg, onset, avalanching, theta_slide: float) -> int:
-    """Onsets before a run's first slide (module docstring).
-
-    theta_deg, onset, avalanching: one run's frames in order (deg, bool, bool); theta_slide: its
-    first slide (deg; NaN: none). An onset counts when the avalanching stretch it starts ends
-    (its last frame) at theta < theta_slide: an avalanche still running when the slide begins is
-    the slide's own start. With no slide every onset counts.
-    """
-    th = np.asarray(theta_deg, dtype=float)
-    on = np.asarray(onset, dtype=bool)
-    av = np.asarray(avalanching, dtype=bool)
-    if not (th.shape == on.shape == av.shape):
-        raise ValueError("precursor_count: theta_deg, onset and avalanching differ in length")
-    av = av | on
-    idx = np.flatnonzero(on)
-    if not np.isfinite(theta_slide):
-        return int(idx.size)
-    starts, ends = stretches(av)
-    last = np.empty(th.size, dtype=int)                # last frame of the stretch holding k
-    for s, e in zip(starts, ends):
-        last[s:e] = e - 1
-    return int(sum(th[last[i]] < theta_slide - 1e-9 for i in idx))
-
-
 def per_run_table(ens, theta_onset, theta_slide, below_deg: float = np.nan) -> pd.DataFrame:
     """Per run of ``ens`` (seeds order): theta_first_onset, theta_first_slide, slid, theta_end,
     n_onsets, n_precursors, n_onsets_below (onsets at theta < below_deg; NaN without it),
@@ -198,33 +174,6 @@ def per_run_table(ens, theta_onset, theta_slide, below_deg: float = np.nan) -> p
                      "z_quiet": float(q["z"].iloc[k]), "n_m_quiet": float(q["n_m"].iloc[k]),
                      "z_start": float(g["z"].iloc[0]) if len(g) else np.nan})
     return pd.DataFrame(rows)
-
-
-def diff_ci(x, y, confidence: float = 0.95, n_resamples: int = 9999, seed: int = 0) -> dict:
-    """mean(x) - mean(y) of two independent sets of per-run values (NaN dropped) with a
-    percentile bootstrap interval (scipy.stats.bootstrap, each set resampled on its own).
-    Fewer than 2 values in a set: the interval is NaN. Returns dict estimate, low, high, n_x,
-    n_y, confidence. (A candidate for :mod:`tiltpile.analysis.stats`.)"""
-    from scipy import stats as _sst
-    x = np.asarray(x, dtype=float).ravel()
-    y = np.asarray(y, dtype=float).ravel()
-    x, y = x[np.isfinite(x)], y[np.isfinite(y)]
-    est = float(x.mean() - y.mean()) if x.size and y.size else np.nan
-    out = {"estimate": est, "low": np.nan, "high": np.nan, "n_x": int(x.size), "n_y": int(y.size),
-           "confidence": float(confidence)}
-    if x.size < 2 or y.size < 2:
-        return out
-    if np.ptp(x) == 0 and np.ptp(y) == 0:
-        out.update(low=est, high=est)
-        return out
-    with warnings.catch_warnings():
-        warnings.simplefilter("ignore")
-        res = _sst.bootstrap((x, y), lambda a, b: np.mean(a) - np.mean(b), paired=False,
-                             confidence_level=confidence, n_resamples=n_resamples,
-                             method="percentile", vectorized=False,
-                             rng=np.random.default_rng(seed))
-    out.update(low=float(res.confidence_interval.low), high=float(res.confidence_interval.high))
-    return out
 
 
 def _config_differences(ens_list) -> list[str]:
