@@ -72,8 +72,8 @@ class SolverConfig:
     # few at the default scale (the solver creates energy: docs/performance.md); off in the presets.
     max_iter_slide: int = _f(0, lo=0, hi=10_000_000,
                              doc="cap on NLGS sweeps per tilt step while the last frame's kinetic "
-                                 "energy per grain exceeds slide_ke; 0: max_iter throughout")
-    slide_ke: float = _f(1e-3, lo=0.0, lo_open=True,
+                                 "energy per grain exceeds slide_cap_ke; 0: max_iter throughout")
+    slide_cap_ke: float = _f(1e-3, lo=0.0, lo_open=True,
                          doc="kinetic energy per mobile grain [m g d] above which max_iter_slide applies")
     # interleaved: the forward (key) order with no body twice within 8 places (sim/solver.py);
     # why it is the default: docs/performance.md ("Sweep order")
@@ -162,7 +162,7 @@ class HealthConfig:
 # (section, key) -> the default at which the key is left out of the canonical JSON (Config.to_json)
 LATER_KEYS = {("protocol", "pretilt_deg"): (), ("protocol", "end_ke"): 0.0,
               ("protocol", "end_span_deg"): 1.0, ("solver", "max_iter_slide"): 0,
-              ("solver", "slide_ke"): 1e-3}
+              ("solver", "slide_cap_ke"): 1e-3}
 
 SECTIONS = {"scene": SceneConfig, "solver": SolverConfig, "protocol": ProtocolConfig,
             "health": HealthConfig}

@@ -149,10 +149,10 @@ def test_without_the_rule_the_ramp_goes_to_theta_max(pretilted):
     assert end.reason == "theta_max" and end.theta_deg == pytest.approx(cfg.protocol.theta_max_deg)
 
 
-def test_slide_cap_applies_only_after_a_frame_above_slide_ke():
+def test_slide_cap_applies_only_after_a_frame_above_slide_cap_ke():
     """solver.max_iter_slide caps the steps that follow a frame whose kinetic energy per grain
-    exceeds solver.slide_ke; the frames before the first such frame are those of the plain run."""
-    over = TINY + ["protocol.theta_max_deg=30.0", "solver.max_iter=1000", "solver.slide_ke=1e-4"]
+    exceeds solver.slide_cap_ke; the frames before the first such frame are those of the plain run."""
+    over = TINY + ["protocol.theta_max_deg=30.0", "solver.max_iter=1000", "solver.slide_cap_ke=1e-4"]
     plain = _of(_events(config.load("smoke", overrides=over), 1), protocol.Frame)
     cfg = config.load("smoke", overrides=over + ["solver.max_iter_slide=50"])
     capped = _of(_events(cfg, 1), protocol.Frame)

@@ -299,7 +299,7 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Pr
             frame = _frame(sysm, proto, dt, rec)
             yield frame
             sc["frame"] += 1
-            sc["sliding"] = bool(frame.ke / n_mobile > config.solver.slide_ke)
+            sc["sliding"] = bool(frame.ke / n_mobile > config.solver.slide_cap_ke)
             if proto.end_ke > 0:
                 sc["end_above"] = sc["end_above"] + 1 if frame.ke / n_mobile > proto.end_ke else 0
                 if sc["end_above"] >= span_frames:
