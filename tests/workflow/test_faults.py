@@ -7,6 +7,7 @@ All runs are the 60-grain pile tilted to 2 deg (about 0.5 s each once numba's ca
 
 from __future__ import annotations
 
+import contextlib
 import errno
 import hashlib
 import json
@@ -335,16 +336,24 @@ def _can_mount() -> bool:
     return hasattr(os, "geteuid") and os.geteuid() == 0 and shutil.which("mount") is not None
 
 
+@contextlib.contextmanager
+def _tmpfs(path, size_k: int):
+    """A tmpfs of ``size_k`` kB mounted at the new directory ``path`` (the test is skipped if it
+    cannot be mounted), unmounted at the end."""
+    path.mkdir()
+    if subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size_k}k", "tmpfs", str(path)]).returncode:
+        pytest.skip("cannot mount a tmpfs here")
+    try:
+        yield path
+    finally:
+        subprocess.run(["umount", "-l", str(path)])
+
+
 @pytest.mark.skipif(not _can_mount(), reason="mounting a tmpfs needs root")
 def test_disk_full_on_a_real_tiny_tmpfs(tmp_path, ref):
     """A real full disk: HDF5 cannot close a file whose writes failed (h5py crashed with 30
     tracebacks and a segfault); the writer stops while the file can still be closed whole."""
-    mnt = tmp_path / "mnt"
-    mnt.mkdir()
-    size = store.RESERVE_BYTES // 1024 + 600
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}k", "tmpfs", str(mnt)]).returncode:
-        pytest.skip("cannot mount a tmpfs here")
-    try:
+    with _tmpfs(tmp_path / "mnt", store.RESERVE_BYTES // 1024 + 600) as mnt:
         out = mnt / "run.h5"
         cmd = [sys.executable, "-m", "tiltpile", "simulate", *SETS, "--seed", "3", "--out", str(out), "--quiet"]
         p = subprocess.run(cmd, capture_output=True, text=True, env=ENV, timeout=120)
@@ -357,8 +366,6 @@ def test_disk_full_on_a_real_tiny_tmpfs(tmp_path, ref):
         assert p.returncode == 0, p.stderr
         assert_same_run(out, ref)
         assert sorted(q.name for q in mnt.iterdir()) == ["run.h5"]
-    finally:
-        subprocess.run(["umount", "-l", str(mnt)])
 
 
 # -- 6. output paths --------------------------------------------------------------------------------
@@ -516,12 +523,7 @@ def test_manifest_without_a_runs_table_is_one_line(tmp_path, tiny, capsys, runs)
 @pytest.mark.skipif(not _can_mount(), reason="mounting a tmpfs needs root")
 def test_ensemble_on_a_full_disk_is_one_line_per_run_and_resumes(tmp_path, ref):
     """`ensemble` printed 181 tracebacks and left an empty ensemble.json.tmp on a full disk."""
-    mnt = tmp_path / "mnt"
-    mnt.mkdir()
-    size = store.RESERVE_BYTES // 1024 + 600
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size}k", "tmpfs", str(mnt)]).returncode:
-        pytest.skip("cannot mount a tmpfs here")
-    try:
+    with _tmpfs(tmp_path / "mnt", store.RESERVE_BYTES // 1024 + 600) as mnt:
         d = mnt / "ens"
         cmd = [sys.executable, "-m", "tiltpile", "ensemble", *SETS, "--runs", "1", "--first-seed", "3",
                "--out", str(d), "--workers", "1"]
@@ -535,8 +537,6 @@ def test_ensemble_on_a_full_disk_is_one_line_per_run_and_resumes(tmp_path, ref):
         p = subprocess.run([*cmd, "--quiet"], capture_output=True, text=True, env=ENV, timeout=300)
         assert p.returncode == 0, p.stderr
         assert_same_run(d / "run_0003.h5", ref)
-    finally:
-        subprocess.run(["umount", "-l", str(mnt)])
 
 
 def test_observables_on_a_full_disk_is_one_line_and_leaves_no_temporary(tmp_path, ref, monkeypatch, capsys):
@@ -586,11 +586,7 @@ def test_changed_attribute_is_found_by_verify(tmp_path, ref, where, key, value):
 def test_disk_filled_by_someone_else_mid_write_is_still_one_line(tmp_path, ref, size_k):
     """Without the writer's reserve (as when another process fills the disk between two frames)
     HDF5's own writes fail: still one line, no crash, no temporary file, and the rerun works."""
-    mnt = tmp_path / "mnt"
-    mnt.mkdir()
-    if subprocess.run(["mount", "-t", "tmpfs", "-o", f"size={size_k}k", "tmpfs", str(mnt)]).returncode:
-        pytest.skip("cannot mount a tmpfs here")
-    try:
+    with _tmpfs(tmp_path / "mnt", size_k) as mnt:
         out = mnt / "run.h5"
         argv = ["simulate", *SETS, "--seed", "3", "--out", str(out), "--quiet"]
         code = ("import sys; import tiltpile.store as s; s.RESERVE_BYTES = 0; from tiltpile.cli import main; "
@@ -605,8 +601,6 @@ def test_disk_filled_by_someone_else_mid_write_is_still_one_line(tmp_path, ref, 
                            env=ENV, timeout=120)
         assert p.returncode == 0, p.stderr
         assert_same_run(out, ref)
-    finally:
-        subprocess.run(["umount", "-l", str(mnt)])
 
 
 def test_part_held_open_by_a_writer_without_our_lock_is_not_truncated(tmp_path, tiny, monkeypatch):
