@@ -38,7 +38,6 @@ radius by f_n.
 from __future__ import annotations
 
 import base64
-import os
 import struct
 import time
 import zlib
@@ -50,15 +49,9 @@ import numpy as np
 from tiltpile.store import open_run
 
 from .fields import FrameFields, contact_segments, parse_frames
+from .output import progress_frames, replaced_when_complete
 
 FORMATS = ("extxyz", "vtk")
-
-
-def _bar(total: int, desc: str, progress: bool):
-    if not progress:
-        return None
-    from tqdm.auto import tqdm
-    return tqdm(total=total, desc=desc, unit="frame")
 
 
 # ----------------------------------------------------------------------------------------------
@@ -110,20 +103,9 @@ def write_extxyz(run_path, out, frames: str | None = None, progress: bool = True
         ff = FrameFields(run)
         r = ff.radius
         height = max(float(np.max(run.position(k)[:, 1] + r)) for k in sel)
-        bar = _bar(len(sel), "extxyz", progress)
-        try:
-            with open(tmp, "w") as fh:
-                for k in sel:
-                    fh.write(_xyz_frame(ff.fields(k), height))
-                    if bar is not None:
-                        bar.update(1)
-        except BaseException:
-            tmp.unlink(missing_ok=True)
-            raise
-        finally:
-            if bar is not None:
-                bar.close()
-    os.replace(tmp, out)
+        with replaced_when_complete(out, tmp), open(tmp, "w") as fh:
+            for k in progress_frames(sel, "extxyz", progress):
+                fh.write(_xyz_frame(ff.fields(k), height))
     return {"path": str(out), "frames": len(sel), "bytes": out.stat().st_size,
             "seconds": time.perf_counter() - t0}
 
@@ -253,30 +235,23 @@ def write_vtk(run_path, out, frames: str | None = None, progress: bool = True,
         theta = np.asarray(run.theta_deg, dtype=float)[sel]
         use_theta = bool(np.all(np.diff(theta) > 0))
         ff = FrameFields(run)
-        bar = _bar(len(sel), "vtk", progress)
-        try:
-            for k, th in zip(sel, theta):
-                f = ff.fields(k)
-                tv = float(th) if use_theta else float(k)
-                f["time_value"] = tv
-                for part, (name, text) in enumerate((("grains", grains_vtu(f, level)),
-                                                     ("contacts", contacts_vtu(f, level)))):
-                    path = folder / f"{name}_{k:05d}.vtu"
-                    path.write_text(text)
-                    nbytes += path.stat().st_size
-                    entries.append(f'<DataSet timestep="{tv!r}" group="" part="{part}" '
-                                   f'name="{name}" file="{folder.name}/{path.name}"/>')
-                if bar is not None:
-                    bar.update(1)
-        finally:
-            if bar is not None:
-                bar.close()
+        for i in progress_frames(range(len(sel)), "vtk", progress):
+            k = sel[i]
+            f = ff.fields(k)
+            tv = float(theta[i]) if use_theta else float(k)
+            f["time_value"] = tv
+            for part, (name, text) in enumerate((("grains", grains_vtu(f, level)),
+                                                 ("contacts", contacts_vtu(f, level)))):
+                path = folder / f"{name}_{k:05d}.vtu"
+                path.write_text(text)
+                nbytes += path.stat().st_size
+                entries.append(f'<DataSet timestep="{tv!r}" group="" part="{part}" '
+                               f'name="{name}" file="{folder.name}/{path.name}"/>')
     text = ('<?xml version="1.0"?>\n<VTKFile type="Collection" version="0.1" '
             'byte_order="LittleEndian">\n<Collection>\n' + "\n".join(entries)
             + "\n</Collection>\n</VTKFile>\n")
-    tmp = out.with_name(out.name + ".tmp")
-    tmp.write_text(text)
-    os.replace(tmp, out)
+    with replaced_when_complete(out, out.with_name(out.name + ".tmp")) as tmp:
+        tmp.write_text(text)
     nbytes += out.stat().st_size
     return {"path": str(out), "folder": str(folder), "frames": len(sel), "files": 2 * len(sel) + 1,
             "bytes": nbytes, "seconds": time.perf_counter() - t0}

@@ -33,6 +33,7 @@ import numpy as np
 from tiltpile.store import open_run
 
 from .fields import FrameFields, contact_segments, parse_frames
+from .output import progress_frames, replaced_when_complete
 
 COLORS_MODES = ("clusters", "force", "speed")
 SUFFIXES = (".mp4", ".gif", ".png")
@@ -259,25 +260,11 @@ def _render(run_path, out, color, frames, forces, fps, width_px, dpi, progress) 
             writer = animation.PillowWriter(fps=fps)
         from matplotlib.backends.backend_agg import FigureCanvasAgg
         FigureCanvasAgg(fig)
-        bar = None
-        if progress:
-            from tqdm.auto import tqdm
-            bar = tqdm(total=len(sel), desc=f"movie {out.name}", unit="frame")
-        tmp = out.with_name(f".{out.stem}.tmp{out.suffix}")
-        try:
-            with writer.saving(fig, str(tmp), dpi):
-                for k in sel:
-                    art.draw(ff.fields(k))
-                    writer.grab_frame()
-                    if bar is not None:
-                        bar.update(1)
-        except BaseException:
-            tmp.unlink(missing_ok=True)
-            raise
-        finally:
-            if bar is not None:
-                bar.close()
-        tmp.replace(out)
+        with replaced_when_complete(out, out.with_name(f".{out.stem}.tmp{out.suffix}")) as tmp, \
+                writer.saving(fig, str(tmp), dpi):
+            for k in progress_frames(sel, f"movie {out.name}", progress):
+                art.draw(ff.fields(k))
+                writer.grab_frame()
         w, h = fig.canvas.get_width_height()
     return {"path": str(out), "frames": len(sel), "width": w, "height": h,
             "bytes": out.stat().st_size, "seconds": time.perf_counter() - t0}
