@@ -78,7 +78,7 @@ def summarize(ens) -> dict:
                "n_m_quiet": np.array([quiet["n_m"].get(s, np.nan) for s in ens.seeds], float),
                "below_quiet": np.array([below.get(s, np.nan) for s in ens.seeds], float),
                "delta": _run_delta(ens.clusters, ens.seeds)}
-    out = dict(config=ens.config, seeds=list(ens.seeds),
+    out = dict(config=ens.config, seeds=list(ens.seeds), cost=ens.meta.get("cost") or {},
                avalanching_fraction=float(av.mean()) if av.size else np.nan)
     for name, x in per_run.items():
         ok = x[np.isfinite(x)]

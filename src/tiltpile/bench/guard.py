@@ -33,22 +33,15 @@ LABELS = {"theta_m": "first onset theta_m", "z_quiet": "<z> quiet", "n_m_quiet":
           "below_quiet": "quiet frames below z = 3 + n_m", "delta": "cluster exponent delta"}
 
 
-def cost(data_dir) -> dict:
-    """Median and mean seconds per finished run and mean capped steps per run (manifest); mean
-    NLGS sweeps per run from the run files that record them (NaN if none does)."""
-    from tiltpile.analysis.ensemble_data import ensemble_cost
-    from tiltpile.analysis.observables import run_files
-    from tiltpile.store import open_run
-
+def cost(data_dir, sweeps_per_run=None) -> dict:
+    """Median and mean seconds per finished run, mean capped steps per run and failed runs (from
+    the manifest); ``sweeps_per_run`` (the ensemble's ``meta["cost"]``, None if its run files do
+    not count them) is passed through."""
     m = json.loads((Path(data_dir) / "ensemble.json").read_text())
     runs = [r for r in m["runs"].values() if r.get("status") == "done" and r.get("seconds")]
     sec = np.array([r["seconds"] for r in runs], float)
     caps = np.array([r.get("cap_hits", np.nan) for r in runs], float)
-    costs = []
-    for f in run_files(data_dir):
-        with open_run(f) as r:
-            costs.append(dict(r.cost))
-    sweeps = ensemble_cost(costs)["sweeps_per_run"]
+    sweeps = sweeps_per_run
     failed = sum(r.get("status") == "failed" for r in m["runs"].values())
     return dict(runs_done=len(runs), runs_failed=failed, seconds_median=float(np.median(sec)) if sec.size else np.nan,
                 seconds_mean=float(sec.mean()) if sec.size else np.nan,
@@ -63,7 +56,8 @@ def table(dirs) -> pd.DataFrame:
     out = []
     for r in rows:
         diff = ", ".join(f"{k}={v[1]}" for k, v in r["diff"].items()) or "reference"
-        row = dict(dir=r["dir"], setting=diff, runs=len(r["seeds"]), **cost(r["dir"]))
+        row = dict(dir=r["dir"], setting=diff, runs=len(r["seeds"]),
+                   **cost(r["dir"], r["cost"].get("sweeps_per_run")))
         for m in METRICS:
             err = float(np.hypot(r[f"{m}_sem"], ref[f"{m}_sem"]))
             row.update({f"{m}_mean": r[f"{m}_mean"], f"{m}_sem": r[f"{m}_sem"],

@@ -240,7 +240,9 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Pr
                 f"; {last_caps:.0%} of the last {DEPOSITION_CHUNK} steps hit solver.max_iter = "
                 f"{config.solver.max_iter} (if many, raise it or loosen solver.deposition_tol)")
             raise SimulationError(
-                f"deposition not at rest after {sc['deposition_steps']} steps (limit protocol.max_deposition_steps = {proto.max_deposition_steps}, checked every {DEPOSITION_CHUNK} steps) "
+                f"deposition not at rest after {sc['deposition_steps']} steps (limit "
+                f"protocol.max_deposition_steps = {proto.max_deposition_steps}, checked every "
+                f"{DEPOSITION_CHUNK} steps) "
                 f"(kinetic energy per grain {_ke(sysm) / n_mobile:.3g} > rest_ke {proto.rest_ke:g}"
                 f"{caps}); raise protocol.max_deposition_steps or rest_ke")
         rec = _advance(sysm, DEPOSITION_CHUNK, 0.0, 0.0)
@@ -253,8 +255,7 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Pr
         sc["deposition_missed"] = sc.get("deposition_missed", 0) + int(rec.missed.sum())
         _check_health(sysm, rec, health, n_mobile, "deposit")
         _check_sane(sysm, config.scene.box_length)
-        for quiet in rec.ke / n_mobile < proto.rest_ke:
-            sc["rest_count"] = sc["rest_count"] + 1 if quiet else 0
+        _count_rest(sc, rec, n_mobile, proto.rest_ke)
         yield Progress("deposit", sc["step"], 0.0, float(rec.iterations.mean()))
         if sc["rest_count"] >= proto.rest_steps:
             sc["phase"] = "pretilt" if proto.pretilt_deg else "settle"
@@ -315,6 +316,13 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Pr
                 sc.get("capped_steps", 0))
 
 
+def _count_rest(sc: dict, rec, n_mobile: int, rest_ke: float) -> None:
+    """``sc["rest_count"]``: consecutive steps, up to the last of ``rec``, with kinetic energy
+    per mobile grain below ``rest_ke`` (how deposition and every pretilt leg end)."""
+    for quiet in rec.ke / n_mobile < rest_ke:
+        sc["rest_count"] = sc["rest_count"] + 1 if quiet else 0
+
+
 def _advance(sysm: System, k: int, theta0_deg: float, dtheta_deg: float):
     """``sysm.advance``, counting the sweeps and capped steps of the run in its scalars."""
     rec = sysm.advance(k, theta0_deg, dtheta_deg)
@@ -347,8 +355,7 @@ def _pretilt_chunk(sysm: System, config, n_mobile: int):
                 f"rest_ke {proto.rest_ke:g}); raise protocol.max_deposition_steps or rest_ke")
         rec = _advance(sysm, k, target, 0.0)
         sc["hold_steps"] += k
-        for quiet in rec.ke / n_mobile < proto.rest_ke:
-            sc["rest_count"] = sc["rest_count"] + 1 if quiet else 0
+        _count_rest(sc, rec, n_mobile, proto.rest_ke)
         where = (target, 0.0)
     sc["step"] += k
     sc["rebuilds"] += rec.rebuilds
