@@ -41,12 +41,11 @@ def cost(data_dir, sweeps_per_run=None) -> dict:
     runs = [r for r in m["runs"].values() if r.get("status") == "done" and r.get("seconds")]
     sec = np.array([r["seconds"] for r in runs], float)
     caps = np.array([r.get("cap_hits", np.nan) for r in runs], float)
-    sweeps = sweeps_per_run
     failed = sum(r.get("status") == "failed" for r in m["runs"].values())
     return dict(runs_done=len(runs), runs_failed=failed, seconds_median=float(np.median(sec)) if sec.size else np.nan,
                 seconds_mean=float(sec.mean()) if sec.size else np.nan,
                 cap_hits_mean=float(np.nanmean(caps)) if caps.size else np.nan,
-                sweeps_per_run=np.nan if sweeps is None else sweeps)
+                sweeps_per_run=np.nan if sweeps_per_run is None else sweeps_per_run)
 
 
 def table(dirs) -> pd.DataFrame:

@@ -80,12 +80,13 @@ def continue_tilt(cfg, seed: int, theta: float, state: dict, steps: int, cap: in
 def study(run_path, frames, steps: int, caps, warm: int = 10, out=sys.stdout) -> list[dict]:
     """One row per (frame, cap) (module docstring), the largest cap as each frame's reference."""
     caps = sorted({int(k) for k in caps})
-    rows = []
+    rows, mob = [], None
     for f in frames:
         cfg, seed, theta, state = rebuilt_state(run_path, f, warm)
+        if mob is None:  # the same pile at every frame
+            mob = ~protocol.make_system(cfg, seed).fixed
         res = {k: continue_tilt(cfg, seed, theta, state, steps, k) for k in caps[::-1]}
         ref_pos = res[caps[-1]]["end_pos"]
-        mob = ~protocol.make_system(cfg, seed).fixed
         for k in caps:
             r = res[k]
             dist = float(np.hypot(*(r.pop("end_pos") - ref_pos)[mob].T).mean())
