@@ -110,9 +110,15 @@ class ProtocolConfig:
     # Preparation history: after deposition, tilt to each angle in turn at tilt_per_step_deg per
     # step, each leg ending at rest (rest_ke for rest_steps, at most max_deposition_steps of
     # holding); the analysed ramp then starts from 0 deg, so a history must end at 0.
+    # The shorthand protocol.cycles = k with protocol.theta_rev_deg = a writes Deboeuf et al.'s
+    # history (PRE 72, 051305, 2005): 0 -> a, then k full cycles a -> -a -> a, then back to 0,
+    # i.e. pretilt_deg = [a, -a, a, ..., -a, a, 0] (from_dict expands it: HISTORY_SHORTHAND).
     pretilt_deg: tuple = _f((), lo=-90.0, hi=90.0,
                             doc="tilt excursions before the analysed ramp, e.g. [15.0, -15.0, 0.0] "
-                                "(each leg at the ramp's rate, ending at rest; must end at 0.0)")
+                                "(each leg ending at rest; must end at 0.0)")
+    pretilt_per_step_deg: float = _f(0.0, lo=0.0, hi=1.0,
+                                     doc="rotation of gravity per step in the pretilt legs; "
+                                         "0: tilt_per_step_deg (the analysed ramp's rate)")
     # End-of-run rule: the figures need the quiet periods, the onsets and the first frames of the
     # large slide, not a pile flowing for ten more degrees.
     end_ke: float = _f(0.0, lo=0.0, doc="end the tilt once the kinetic energy per mobile grain "
@@ -160,9 +166,51 @@ class HealthConfig:
 
 
 # (section, key) -> the default at which the key is left out of the canonical JSON (Config.to_json)
-LATER_KEYS = {("protocol", "pretilt_deg"): (), ("protocol", "end_ke"): 0.0,
+LATER_KEYS = {("protocol", "pretilt_deg"): (), ("protocol", "pretilt_per_step_deg"): 0.0,
+              ("protocol", "end_ke"): 0.0,
               ("protocol", "end_span_deg"): 1.0, ("solver", "max_iter_slide"): 0,
               ("solver", "slide_cap_ke"): 1e-3}
+
+# Keys that are not fields: from_dict turns protocol.cycles and protocol.theta_rev_deg into
+# protocol.pretilt_deg (deboeuf_history), so a history has one canonical form and one hash
+# however it was written.
+HISTORY_SHORTHAND = {"cycles": "number of full cycles +-theta_rev_deg after the first tilt to "
+                               "theta_rev_deg (Deboeuf et al. 2005: 2); writes pretilt_deg",
+                     "theta_rev_deg": "amplitude [deg] of the cycles; 0: no history"}
+
+
+def deboeuf_history(cycles: int, theta_rev_deg: float) -> tuple:
+    """The legs of Deboeuf et al.'s preparation: 0 -> a, ``cycles`` full cycles a -> -a -> a, then
+    back to 0 (a = ``theta_rev_deg``; () when a = 0). ``deboeuf_history(2, 16.0)`` is
+    (16, -16, 16, -16, 16, 0)."""
+    a = float(theta_rev_deg)
+    if a == 0.0:
+        return ()
+    return (a,) + (-a, a) * int(cycles) + (0.0,)
+
+
+def _expand_history(given: dict) -> dict:
+    """``given`` (a protocol table) with protocol.cycles/theta_rev_deg replaced by pretilt_deg."""
+    if not any(k in given for k in HISTORY_SHORTHAND):
+        return given
+    given = dict(given)
+    cycles, theta = given.pop("cycles", None), given.pop("theta_rev_deg", None)
+    if cycles is None or theta is None:
+        missing = "theta_rev_deg" if theta is None else "cycles"
+        raise ConfigError(f"protocol.{missing} is missing: the history shorthand needs both "
+                          "protocol.cycles and protocol.theta_rev_deg")
+    if isinstance(cycles, bool) or not isinstance(cycles, int) or not 0 <= cycles <= 100:
+        raise ConfigError(f"protocol.cycles = {cycles!r}: expected an integer from 0 to 100")
+    if (isinstance(theta, bool) or not isinstance(theta, (int, float)) or not math.isfinite(theta)
+            or not 0.0 <= theta <= 90.0):
+        raise ConfigError(f"protocol.theta_rev_deg = {theta!r}: expected a number in [0.0, 90.0] "
+                          "(0: no history)")
+    if given.get("pretilt_deg"):
+        raise ConfigError("protocol.pretilt_deg and protocol.cycles/theta_rev_deg both give a "
+                          "history: set one of them")
+    given["pretilt_deg"] = list(deboeuf_history(cycles, theta))
+    return given
+
 
 SECTIONS = {"scene": SceneConfig, "solver": SolverConfig, "protocol": ProtocolConfig,
             "health": HealthConfig}
@@ -265,9 +313,12 @@ def from_dict(data: dict[str, Any], base: Config | None = None) -> Config:
         if not isinstance(given, dict):
             raise ConfigError(f"{section}: expected a table of keys, got {given!r}")
         known = {f.name: f for f in fields(cls)}
+        if section == "protocol":
+            given = _expand_history(given)
         for key, value in given.items():
             if key not in known:
-                raise ConfigError(f"unknown key {section}.{key}; known keys: {', '.join(sorted(known))}")
+                names = sorted(known) + (sorted(HISTORY_SHORTHAND) if section == "protocol" else [])
+                raise ConfigError(f"unknown key {section}.{key}; known keys: {', '.join(names)}")
             current[key] = _check_value(section, known[key], value)
         out[section] = cls(**current)
     for section in data:
@@ -288,6 +339,10 @@ def _check_consistency(cfg: Config) -> None:
     if pre and pre[-1] != 0.0:
         raise ConfigError(f"protocol.pretilt_deg = {list(pre)!r} must end at 0.0: the analysed ramp "
                           "starts from 0 deg")
+    if cfg.protocol.pretilt_per_step_deg > 0 and not pre:
+        raise ConfigError(f"protocol.pretilt_per_step_deg = {cfg.protocol.pretilt_per_step_deg!r} "
+                          "is set but there is no history (protocol.pretilt_deg or "
+                          "protocol.cycles/theta_rev_deg)")
     h = cfg.health
     for warn, stop in (("overlap_warn", "overlap_stop"), ("energy_warn", "energy_stop"),
                        ("cap_hit_warn_fraction", "cap_hit_stop_fraction")):

@@ -334,11 +334,12 @@ def _advance(sysm: System, k: int, theta0_deg: float, dtheta_deg: float):
 
 def _pretilt_chunk(sysm: System, config, n_mobile: int):
     """One chunk of the preparation history (``protocol.pretilt_deg``): tilt towards the current
-    leg's angle at the ramp's rate, then hold there until at rest; events as ``run``'s."""
+    leg's angle at ``pretilt_per_step_deg`` per step (the ramp's rate if 0), then hold there
+    until at rest; events as ``run``'s."""
     sc, proto = sysm.scalars, config.protocol
     legs = proto.pretilt_deg
     target, start = legs[sc["leg"]], sc["leg_start"]
-    n_leg = int(round(abs(target - start) / proto.tilt_per_step_deg))
+    n_leg = int(round(abs(target - start) / (proto.pretilt_per_step_deg or proto.tilt_per_step_deg)))
     if sc["leg_step"] < n_leg:
         d = (target - start) / n_leg  # the last step lands on the target
         k = min(DEPOSITION_CHUNK, n_leg - sc["leg_step"])
