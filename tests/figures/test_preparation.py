@@ -70,6 +70,11 @@ def test_history_labels():
     assert preparation.history_label([-7.5, 7.5, 0]) == "∓7.5° once"
     assert preparation.history_label([12.0, 0.0]) == "12° once"
     assert preparation.history_label([10.0, -5.0, 0.0]) == "pretilt 10/-5/0°"
+    # Deboeuf's history, as protocol.cycles / theta_rev_deg write it
+    from tiltpile.config import deboeuf_history
+    assert preparation.history_label(deboeuf_history(2, 16.0)) == "±16° 2 cycles"
+    assert preparation.history_label(deboeuf_history(1, 10.0)) == "±10° 1 cycle"
+    assert preparation.history_label(deboeuf_history(0, 10.0)) == "10° once"
 
 
 # ---------------------------------------------------------------------------------------------
@@ -132,6 +137,32 @@ def test_numbers_equal_the_analysis_run_by_run(study):
             assert pr["n_precursors"][k] <= pr["n_onsets"][k] == on.size
             # onsets below the study's largest pretilt angle (5 deg)
             assert pr["n_onsets_below"][k] == (th[on] < 5.0).sum()
+            # the memory measures: against the ensemble's own largest history angle (NaN fresh)
+            rev = 5.0 if lab != "fresh" else np.nan
+            assert out["theta_rev_deg"] == pytest.approx(rev, nan_ok=True)
+            lf = np.nan_to_num(g["lost_fraction"].to_numpy(float))
+            first = th[lf > preparation.CHANGE_CUTOFF]
+            assert pr["theta_first_change"][k] == pytest.approx(first[0] if first.size else np.nan,
+                                                                nan_ok=True)
+            if lab == "fresh":
+                assert np.isnan(pr["n_onsets_below_rev"][k]) and np.isnan(pr["onset_over_rev"][k])
+            else:
+                assert pr["n_onsets_below_rev"][k] == (th[on] < 5.0).sum()
+                assert pr["onset_over_rev"][k] == pytest.approx(pr["theta_first_onset"][k] / 5.0,
+                                                                nan_ok=True)
+            # the structure at frame 0 is that of the run file's first frame
+            from tiltpile.analysis.structure import bulk_window, packing_fraction
+            from tiltpile.store import open_run
+            with open_run(e.run_path(s)) as r:
+                pos = r.position(0)
+                win = bulk_window(pos, r.radius, r.fixed, r.box_length,
+                                  margin=preparation.BULK_MARGIN)
+                assert pr["phi_start"][k] == packing_fraction(pos, r.radius, win)
+            assert 0.5 < pr["phi_start"][k] < 0.91  # below the densest packing of disks
+            assert 0.0 <= pr["fabric_start"][k] <= 2.0
+            assert -90.0 < pr["fabric_major_start"][k] <= 90.0
+        quiet_past = np.nan_to_num(np.asarray(pr["theta_first_onset"], float), nan=np.inf) > 14.4
+        assert out["n_runs_quiet_past"] == quiet_past.sum()
         # means and intervals over runs are the library's bootstrap of the per-run values
         for q in preparation.PER_RUN:
             ci = st.bootstrap_ci(pr[q])
@@ -153,7 +184,7 @@ def test_numbers_equal_the_analysis_run_by_run(study):
     assert diff["estimate"] == pytest.approx(numbers["ensembles"]["±5° once"]["z_quiet_mean"]
                                              - numbers["ensembles"]["fresh"]["z_quiet_mean"])
     fig = preparation.plot(d, numbers)
-    assert len(fig.axes) == 4
+    assert len(fig.axes) == 8
     plt.close(fig)
 
 

@@ -53,7 +53,30 @@ PER_RUN = {
     "n_onsets": "all onsets of the ramp (to the end of the tilt; no slide threshold involved)",
     "z_quiet": "mean z of the quiet frames (bulk, force contacts)",
     "n_m_quiet": "mean n_m of the quiet frames",
+    # the memory of the history (Deboeuf et al. 2005): quiet until about theta_rev?
+    "theta_first_change": "first frame losing more than CHANGE_CUTOFF of its contacts (deg): "
+                          "where irreversible change returns",
+    "onset_over_rev": "first onset / the ensemble's own largest history angle theta_rev "
+                      "(NaN: fresh)",
+    "n_onsets_below_rev": "onsets below the ensemble's own theta_rev (NaN: fresh)",
+    # what the history leaves in the pile at frame 0 (analysis.structure)
+    "phi_start": "packing fraction of the bulk window at frame 0",
+    "fabric_start": "contact fabric anisotropy 2 (l1 - l2) of the bulk at frame 0",
+    "fabric_major_start": "direction of the fabric's major axis from the vertical at frame 0 "
+                          "(deg, positive towards the downhill wall x = L)",
 }
+
+# the packing fraction's window keeps 2 d (two grains) from the walls, the rough bottom and the
+# lowest surface grain's centre
+BULK_MARGIN = 2.0
+
+# the paper's Fig. 5 has quiet frames 14.4 deg before an onset: some of its piles stayed quiet
+# past 14.4 deg
+QUIET_PAST_DEG = 14.4
+
+# a loss of contacts well below the onset cutoff (9 of ~1800 contacts at 1000 grains): the first
+# irreversible rearrangement of the ramp, however small
+CHANGE_CUTOFF = 0.005
 
 
 # ----------------------------------------------------------------------------------------------
@@ -64,7 +87,9 @@ def history_label(targets) -> str:
     """A short name for a preparation history (the legs' target angles in deg, in order).
 
     [] -> "fresh"; [a, -a, 0] -> "±a° once"; [a, -a, a, -a, 0] -> "±a° twice" (k > 2:
-    "k times"); [-a, a, 0] -> "∓a° once"; [a, 0] -> "a° once"; else "pretilt a/b/.../0°".
+    "k times"); [-a, a, 0] -> "∓a° once"; [a, 0] -> "a° once"; Deboeuf's history
+    [a, -a, a, ..., -a, a, 0] (``protocol.cycles`` = k, ``theta_rev_deg`` = a) -> "±a° k cycles"
+    ("1 cycle"); else "pretilt a/b/.../0°".
     """
     t = [float(x) for x in targets]
     if not t:
@@ -77,10 +102,14 @@ def history_label(targets) -> str:
     body = t[:-1] if t[-1] == 0.0 else None
     if body:
         a = body[0]
-        if len(body) % 2 == 0 and a != 0.0 and all(x == (a if i % 2 == 0 else -a)
-                                                    for i, x in enumerate(body)):
+        alternating = a != 0.0 and all(x == (a if i % 2 == 0 else -a) for i, x in enumerate(body))
+        sign = "±" if a > 0 else "∓"
+        if len(body) % 2 == 0 and alternating:
             k = len(body) // 2
-            return f"{'±' if a > 0 else '∓'}{num(abs(a))}° {times.get(k, f'{k} times')}"
+            return f"{sign}{num(abs(a))}° {times.get(k, f'{k} times')}"
+        if len(body) >= 3 and alternating:
+            k = len(body) // 2
+            return f"{sign}{num(abs(a))}° {k} cycle{'s' if k > 1 else ''}"
         if len(body) == 1:
             return f"{num(a)}° once"
     return "pretilt " + "/".join(num(x) for x in t) + "°"
@@ -152,17 +181,48 @@ def load(data_dirs, labels=None, **analysis_params) -> tuple[list, list[str], li
 # per-run numbers
 
 
-def per_run_table(ens, theta_onset, theta_slide, below_deg: float = np.nan) -> pd.DataFrame:
+def start_structure(ens) -> pd.DataFrame:
+    """Per run of ``ens`` (seeds order): packing fraction (``phi_start``) and contact fabric
+    (``fabric_start``, ``fabric_major_start``) of the pile at frame 0, after its history
+    (:mod:`tiltpile.analysis.structure`, bulk window 3 d inside the pile; fabric of the active
+    contacts of bulk grains). NaN where the pile leaves no window."""
+    from tiltpile.analysis.contacts import active_mask, bulk_mask
+    from tiltpile.analysis.structure import bulk_window, fabric, packing_fraction
+    from tiltpile.store import open_run
+    rows = []
+    for s in ens.seeds:
+        with open_run(ens.run_path(s)) as r:
+            pos, (pair, force, _) = r.position(0), r.contacts(0)
+            radius, fixed, length = r.radius, r.fixed, r.box_length
+        try:
+            phi = packing_fraction(pos, radius, bulk_window(pos, radius, fixed, length,
+                                                            margin=BULK_MARGIN))
+        except ValueError:
+            phi = np.nan
+        fab = fabric(pair, pos, active_mask(force), select=bulk_mask(pos, radius, fixed, pair, length))
+        rows.append({"phi_start": phi, "fabric_start": fab["anisotropy"],
+                     "fabric_major_start": fab["major_deg"]})
+    return pd.DataFrame(rows)
+
+
+def per_run_table(ens, theta_onset, theta_slide, below_deg: float = np.nan,
+                  theta_rev: float = np.nan) -> pd.DataFrame:
     """Per run of ``ens`` (seeds order): theta_first_onset, theta_first_slide, slid, theta_end,
     n_onsets, n_precursors, n_onsets_below (onsets at theta < below_deg; NaN without it),
-    z_quiet, n_m_quiet, z_start (bulk z at frame 0)."""
+    z_quiet, n_m_quiet, z_start (bulk z at frame 0), the memory measures theta_first_change,
+    onset_over_rev and n_onsets_below_rev (``theta_rev``: the ensemble's own largest history
+    angle; NaN for fresh piles) and the structure at frame 0 (:func:`start_structure`)."""
     f = ens.frames.sort_values(["run", "frame"], kind="stable")
     q = fig2.per_run_quiet(f, ens.seeds)
+    struct = start_structure(ens)
     rows = []
     for k, s in enumerate(ens.seeds):
         g = f[f["run"] == s]
         th = g["theta_deg"].to_numpy(float)
         sl = float(theta_slide[k])
+        lf = g["lost_fraction"].to_numpy(float)
+        changed = np.flatnonzero(np.nan_to_num(lf) > CHANGE_CUTOFF)
+        onset_th = th[g["onset"].to_numpy(bool)]
         rows.append({"run": int(s), "theta_first_onset": float(theta_onset[k]),
                      "theta_first_slide": sl, "slid": bool(np.isfinite(sl)),
                      "theta_end": float(th[-1]) if th.size else np.nan,
@@ -172,7 +232,12 @@ def per_run_table(ens, theta_onset, theta_slide, below_deg: float = np.nan) -> p
                      "n_onsets_below": (float((th[g["onset"].to_numpy(bool)] < below_deg).sum())
                                         if np.isfinite(below_deg) else np.nan),
                      "z_quiet": float(q["z"].iloc[k]), "n_m_quiet": float(q["n_m"].iloc[k]),
-                     "z_start": float(g["z"].iloc[0]) if len(g) else np.nan})
+                     "z_start": float(g["z"].iloc[0]) if len(g) else np.nan,
+                     "theta_first_change": float(th[changed[0]]) if changed.size else np.nan,
+                     "onset_over_rev": float(theta_onset[k]) / theta_rev,
+                     "n_onsets_below_rev": (float((onset_th < theta_rev).sum())
+                                            if np.isfinite(theta_rev) else np.nan),
+                     **struct.iloc[k].to_dict()})
     return pd.DataFrame(rows)
 
 
@@ -250,9 +315,13 @@ def compute(ens_list, labels, histories=None, confidence: float = 0.95, **fig2_k
     tables = {}
     for e, lab, hist in zip(ens_list, labels, histories):
         n2, _ = fig2.compute(e, confidence=confidence, **fig2_kwargs)
-        t = per_run_table(e, n2["theta_m_per_run"], n2["theta_slide_per_run"], below)
+        rev = max((abs(float(x)) for x in hist), default=0.0) or np.nan
+        t = per_run_table(e, n2["theta_m_per_run"], n2["theta_slide_per_run"], below, rev)
         tables[lab] = t
-        out = {"pretilt_deg": [float(x) for x in hist], "n_runs": int(e.n_runs),
+        out = {"pretilt_deg": [float(x) for x in hist], "theta_rev_deg": rev,
+               "n_runs": int(e.n_runs), "quiet_past_deg": QUIET_PAST_DEG,
+               "n_runs_quiet_past": int((np.nan_to_num(t["theta_first_onset"], nan=np.inf)
+                                         > QUIET_PAST_DEG).sum()),
                "seeds": [int(s) for s in e.seeds], "theta_end_min": n2["theta_end_min"],
                "per_run": {c: t[c].tolist() for c in t.columns if c != "run"}}
         for q in list(PER_RUN) + ["z_start"]:
@@ -341,17 +410,20 @@ def plot(data: dict, numbers: dict):
     """(a) first onset and first slide per ensemble, (b) precursor events before the slide and
     onsets below the study's largest pretilt angle, (c) <z>, (d) <n_m> of the quiet frames: per
     run (points; open: the run did not slide before the end of its tilt, shown at that angle in
-    a and counted to it in b) and mean with its bootstrap interval (bar)."""
+    a and counted to it in b) and mean with its bootstrap interval (bar); the memory of the
+    history, (e) the first change and first onset against the history's amplitude; what the
+    history leaves at frame 0, (f) packing fraction, (g) fabric anisotropy, (h) its direction."""
     labels = data["labels"]
     nens = len(labels)
     ens = numbers["ensembles"]
     onset_c, slide_c = style.OKABE_ITO["blue"], style.COLORS["avalanche"]
     below_c, below = style.OKABE_ITO["purple"], numbers.get("below_deg")
     below = np.nan if below is None else float(below)
-    fig, axs = style.figure(1, 4, width=style.DOUBLE_COLUMN_IN, height=2.7,
-                            gridspec_kw=dict(wspace=0.42, left=0.06, right=0.99, bottom=0.22,
-                                             top=0.74))
-    a, b, c, d = axs
+    fig, axs = style.figure(2, 4, width=style.DOUBLE_COLUMN_IN, height=5.2,
+                            gridspec_kw=dict(wspace=0.42, hspace=0.75, left=0.06, right=0.99,
+                                             bottom=0.11, top=0.86))
+    a, b, c, d = axs[0]
+    e_ax, f_ax, g_ax, h_ax = axs[1]
     x = np.arange(nens, dtype=float)
     for i, lab in enumerate(labels):
         t, e = data["tables"][lab], ens[lab]
@@ -373,11 +445,26 @@ def plot(data: dict, numbers: dict):
         _mean_ci(c, x[i], e, "z_quiet", style.COLORS["quiet"])
         _points(d, x[i], t["n_m_quiet"], style.COLORS["quiet"], "o")
         _mean_ci(d, x[i], e, "n_m_quiet", style.COLORS["quiet"])
+        # the memory: where irreversible change returns, against the history's amplitude
+        _points(e_ax, x[i] - 0.2, t["theta_first_change"], below_c, "^")
+        _mean_ci(e_ax, x[i] - 0.2, e, "theta_first_change", below_c)
+        _points(e_ax, x[i] + 0.2, t["theta_first_onset"], onset_c, "o")
+        _mean_ci(e_ax, x[i] + 0.2, e, "theta_first_onset", onset_c)
+        rev = e.get("theta_rev_deg")
+        if rev is not None and np.isfinite(rev):
+            e_ax.plot([x[i] - 0.4, x[i] + 0.4], [rev, rev], color="k", lw=0.8, ls="--")
+        for ax, q in ((f_ax, "phi_start"), (g_ax, "fabric_start"), (h_ax, "fabric_major_start")):
+            _points(ax, x[i], t[q], style.COLORS["quiet"], "o")
+            _mean_ci(ax, x[i], e, q, style.COLORS["quiet"])
     # one word per line, so that the labels of neighbouring ensembles never overlap
     names = ["\n".join(lab.split()) + f"\n{len(data['tables'][lab])} runs" for lab in labels]
     for ax, lab, ylab in ((a, "a", r"$\theta$ (deg)"), (b, "b", "onsets per run"),
                           (c, "c", r"$\langle z\rangle$ quiet frames"),
-                          (d, "d", r"$\langle n_m\rangle$ quiet frames")):
+                          (d, "d", r"$\langle n_m\rangle$ quiet frames"),
+                          (e_ax, "e", r"$\theta$ (deg)"),
+                          (f_ax, "f", r"packing fraction at $0\degree$"),
+                          (g_ax, "g", r"fabric anisotropy at $0\degree$"),
+                          (h_ax, "h", r"fabric major axis (deg from normal)")):
         ax.set_xticks(x, names, fontsize=6)
         ax.set_xlim(-0.6, nens - 0.4)
         ax.set_ylabel(ylab)
@@ -388,6 +475,7 @@ def plot(data: dict, numbers: dict):
     b.set_ylim(-0.6, max(b.get_ylim()[1], 2.0))
     b.yaxis.set_major_locator(MaxNLocator(integer=True))
     a.set_ylim(bottom=0)
+    e_ax.set_ylim(bottom=0)
     from matplotlib.lines import Line2D
     handles = [Line2D([], [], ls="none", marker="o", color=onset_c, ms=4,
                       label=f"first onset ({100 * ens[labels[0]]['cutoff']:g}% contacts lost)"),
@@ -400,6 +488,10 @@ def plot(data: dict, numbers: dict):
                *([Line2D([], [], ls="none", marker="v", color=below_c, ms=4,
                          label=rf"(b) onsets below {below:g}$\degree$")]
                  if np.isfinite(below) else []),
+               Line2D([], [], ls="none", marker="^", color=below_c, ms=4,
+                      label=f"(e) first frame losing > {100 * CHANGE_CUTOFF:g}% of contacts"),
+               Line2D([], [], ls="--", color="k", lw=0.8,
+                      label=r"(e) the history's amplitude $\theta_{rev}$"),
                Line2D([], [], ls="none", marker="_", color="k", ms=9, mew=1.6,
                       label=f"mean, {100 * data['confidence']:g}% bootstrap CI over runs")]
     fig.legend(handles=handles, loc="upper center", ncol=3, bbox_to_anchor=(0.5, 1.0),
