@@ -106,6 +106,28 @@ def test_bad_history_is_refused_naming_the_field_and_nothing_is_written(tmp_path
     assert list(tmp_path.iterdir()) == []
 
 
+@pytest.mark.parametrize("sets, field", [
+    (["protocol.cycles=2"], "protocol.theta_rev_deg"),
+    (["protocol.theta_rev_deg=16.0"], "protocol.cycles"),
+    (["protocol.cycles=-1", "protocol.theta_rev_deg=16.0"], "protocol.cycles"),
+    (["protocol.cycles=1.5", "protocol.theta_rev_deg=16.0"], "protocol.cycles"),
+    (["protocol.cycles=2", "protocol.theta_rev_deg=95.0"], "protocol.theta_rev_deg"),
+    (["protocol.cycles=2", "protocol.theta_rev_deg=nan"], "protocol.theta_rev_deg"),
+    (["protocol.cycles=2", "protocol.theta_rev_deg=16.0", "protocol.pretilt_deg=[5.0, 0.0]"],
+     "protocol.pretilt_deg and protocol.cycles"),
+    (["protocol.pretilt_per_step_deg=0.02"], "protocol.pretilt_per_step_deg"),
+    (["protocol.cycles=2", "protocol.theta_rev_deg=16.0", "protocol.pretilt_per_step_deg=-1.0"],
+     "protocol.pretilt_per_step_deg"),
+])
+def test_bad_shorthand_or_history_rate_is_refused_in_one_line(tmp_path, capsys, sets, field):
+    out = tmp_path / "x.h5"
+    args = ["simulate", "--preset", "smoke", "--seed", "1", "--quiet", "--out", str(out)]
+    assert main(args + [a for s in sets for a in ("--set", s)]) == 2
+    err = capsys.readouterr().err
+    assert field in err and err.count("\n") == 1
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_later_keys_keep_old_hashes():
     """Configurations that do not use the keys added later hash as before them."""
     base = config.load("default")
@@ -167,3 +189,24 @@ def test_slide_cap_applies_only_after_a_frame_above_slide_cap_ke():
     assert after and all(f.max_iterations <= 50 for f in after)
     before = [f for prev, f in zip(sliding, capped[1:]) if not prev]
     assert any(f.max_iterations > 50 for f in before)
+
+
+def test_history_rate_of_its_own_leaves_the_ramp_alone():
+    """protocol.pretilt_per_step_deg tilts the history legs at their own rate: 5x the ramp's
+    rate makes each leg 5x shorter, and the analysed ramp keeps its frames and rate."""
+    cfg = config.load("smoke", overrides=PRETILT + ["protocol.pretilt_per_step_deg=0.05"])
+    events = _events(cfg, 2)
+    (prep,) = _of(events, protocol.Prepared)
+    assert [leg["tilt_steps"] for leg in prep.legs] == [200, 400, 200]
+    assert all(leg["ke_per_grain"] < cfg.protocol.rest_ke for leg in prep.legs)
+    frames = _of(events, protocol.Frame)
+    assert len(frames) == protocol.n_frames(cfg.protocol)
+    assert np.diff([f.theta_deg for f in frames]) == pytest.approx(
+        cfg.protocol.frame_every * cfg.protocol.tilt_per_step_deg)
+
+
+def test_deboeuf_shorthand_is_the_same_run_as_its_legs():
+    legs = config.load("smoke", overrides=TINY + ["protocol.pretilt_deg=[4.0,-4.0,4.0,0.0]"])
+    short = config.load("smoke", overrides=TINY + ["protocol.cycles=1", "protocol.theta_rev_deg=4"])
+    assert short.protocol.pretilt_deg == (4.0, -4.0, 4.0, 0.0)
+    assert short.hash() == legs.hash() and short == legs
