@@ -20,7 +20,8 @@ LAYERS = (
     ("store",),                           # the run file (HDF5)
     ("runner",),                          # one run: simulate, check health, write
     ("ensemble", "analysis"),             # many runs on dask; observables from run files
-    ("figures", "report", "bench"),       # the paper's figures, the report, measurements
+    ("figures", "report", "bench",        # the paper's figures, the report, measurements,
+     "repose"),                           # the repose angle of finished runs
     ("view",),                            # pictures and movies of one run
     ("cli",),                             # tiltpile <command>
     ("__main__",),                        # python -m tiltpile
