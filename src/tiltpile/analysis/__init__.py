@@ -11,6 +11,8 @@ Modules (imports point down; none reads HDF5 except through :mod:`tiltpile.store
                  delta z versus cluster size
 ``observables``  per-run tables (per frame, per cluster), cached beside the runs; per-run onsets
                  (first 2% onset, first large slide: ``run_table``)
+``zcount``       z = 2 N_c / N under other counting rules (force and gap thresholds, walls,
+                 rattlers, bulk), for ``tiltpile zcount``
 
 Quick use::
 

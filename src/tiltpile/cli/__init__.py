@@ -18,7 +18,8 @@ import sys
 
 from tiltpile import config as cfgmod
 
-COMMANDS = ("simulate", "ensemble", "observables", "verify", "report", "bench", "info", "export", "movie")
+COMMANDS = ("simulate", "ensemble", "observables", "verify", "report", "bench", "info", "export", "movie",
+            "repose", "zcount")
 
 
 def build_parser() -> argparse.ArgumentParser:
