@@ -239,3 +239,27 @@ def test_bad_input_is_refused_with_one_message(tiny, tmp_path):
         preparation.preparation_history(mixed)
     with pytest.raises(ValueError, match="2 labels for 1 ensembles"):
         preparation.compute([object()], ["a", "b"])
+
+
+def test_repose_angles_come_from_the_ensembles_repose_json(tiny, tmp_path):
+    """DIR/repose.json (``tiltpile repose DIR --json DIR/repose.json``) reaches the study's
+    numbers per seed; a file measured on other seeds is refused."""
+    import shutil
+    d = tmp_path / "fresh"
+    shutil.copytree(tiny["fresh"], d)
+    summ = {"runs": 2, "outcomes": {"stopped": 2}, "stop_deg": {"estimate": 15.0, "low": 14.0,
+            "high": 16.0, "n": 2}, "slide_deg": {"estimate": 20.0, "low": 19.0, "high": 21.0, "n": 2}}
+    doc = {"format": 1, "params": {}, "summary": summ,
+           "runs": [{"seed": 2, "stop_deg": 16.0, "slide_deg": 21.0},
+                    {"seed": 1, "stop_deg": 14.0, "slide_deg": 19.0}]}
+    (d / preparation.REPOSE_FILE).write_text(json.dumps(doc))
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ens, labels, hist = preparation.load([d], [])
+    rep = preparation.repose_numbers(ens[0])
+    assert rep["stop_deg_per_run"] == [14.0, 16.0] and rep["slide_deg_per_run"] == [19.0, 21.0]
+    assert rep["stop_deg"]["estimate"] == 15.0
+    doc["runs"][0]["seed"] = 7
+    (d / preparation.REPOSE_FILE).write_text(json.dumps(doc))
+    with pytest.raises(ValueError, match="seeds"):
+        preparation.repose_numbers(ens[0])

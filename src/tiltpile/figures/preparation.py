@@ -205,6 +205,32 @@ def start_structure(ens) -> pd.DataFrame:
     return pd.DataFrame(rows)
 
 
+REPOSE_FILE = "repose.json"
+
+
+def repose_numbers(ens) -> dict | None:
+    """The repose angle of the ensemble's piles (:mod:`tiltpile.repose`), from
+    ``DIR/repose.json`` as ``tiltpile repose DIR --json DIR/repose.json`` writes it: the stop
+    angle (our repose angle) and the slide angle, mean and bootstrap interval over runs, and
+    per seed. None when the file is absent; ValueError when its runs are not the ensemble's."""
+    import json
+    p = Path(ens.data_dir) / REPOSE_FILE
+    if not p.exists():
+        return None
+    doc = json.loads(p.read_text())
+    seeds = sorted(int(r["seed"]) for r in doc["runs"])
+    if seeds != sorted(int(s) for s in ens.seeds):
+        raise ValueError(f"{p}: measured on seeds {seeds}, the ensemble has {list(ens.seeds)}; "
+                         f"rerun `tiltpile repose {ens.data_dir} --json {p}`")
+    by_seed = {int(r["seed"]): r for r in doc["runs"]}
+    summ = doc["summary"]
+    return {"stop_deg": summ["stop_deg"], "slide_deg": summ["slide_deg"],
+            "outcomes": summ["outcomes"],
+            "stop_deg_per_run": [by_seed[int(s)].get("stop_deg") for s in ens.seeds],
+            "slide_deg_per_run": [by_seed[int(s)].get("slide_deg") for s in ens.seeds],
+            "params": doc.get("params")}
+
+
 def per_run_table(ens, theta_onset, theta_slide, below_deg: float = np.nan,
                   theta_rev: float = np.nan) -> pd.DataFrame:
     """Per run of ``ens`` (seeds order): theta_first_onset, theta_first_slide, slid, theta_end,
@@ -289,6 +315,10 @@ def compute(ens_list, labels, histories=None, confidence: float = 0.95, **fig2_k
         slide_ke, slide_sustain_deg, cutoff   the slide detector and onset cutoff used (Fig. 2)
         lost_bimodality            Fig. 2b's: delta_bic, ashman_d, valley_depth, valley, ...
         lost_zero_fraction         fraction of the frames that lose no contact
+        theta_rev_deg, n_runs_quiet_past, quiet_past_deg   the history's amplitude (NaN: fresh)
+                                   and the runs whose first onset comes after 14.4 deg
+        repose                     the repose and slide angles of :func:`repose_numbers` (None
+                                   without DIR/repose.json)
         theta_m_mean_fig2          Fig. 2's theta_m_mean of the same ensemble (check)
         theta_first_slide_ref_ke_mean, n_precursors_ref_ke_mean (+ CI, per_run),
         n_runs_with_slide_ref_ke   the first slide and the precursors before it with the
@@ -336,7 +366,8 @@ def compute(ens_list, labels, histories=None, confidence: float = 0.95, **fig2_k
                    slide_ke=n2["slide_ke"], slide_sustain_deg=n2["slide_sustain_deg"],
                    cutoff=n2["cutoff"], lost_bimodality=n2["lost_bimodality"],
                    lost_zero_fraction=n2["lost_zero_fraction"],
-                   theta_m_mean_fig2=n2["theta_m_mean"])
+                   theta_m_mean_fig2=n2["theta_m_mean"],
+                   repose=repose_numbers(e))
         numbers["ensembles"][lab] = out
     # the slide again with the reference's kinetic-energy threshold for every ensemble: each
     # ensemble's own Fig. 2a threshold differs, and a lower one finds slides earlier and more often
