@@ -599,9 +599,19 @@ def render_scales(figures_dir) -> list[str]:
 QUIET_WINDOW_DEG = 14.4  # the paper's Fig. 5 shows clusters this far before an onset
 
 
+def _quiet_past(e: dict) -> int:
+    """Runs whose first onset comes at or after the paper's window (the paper's Fig. 5 has quiet
+    frames at theta - theta_m = -14.4 deg, so theta_m >= 14.4 deg; a run with no onset to the
+    end of its tilt counts: it stayed quiet)."""
+    if "n_runs_quiet_past" in e:
+        return int(e["n_runs_quiet_past"])
+    return sum(x is None or _num(x) >= QUIET_WINDOW_DEG for x in e["per_run"]["theta_first_onset"])
+
+
 def render_preparation(figures_dir) -> list[str]:
     """Markdown lines: the preparation study (``preparation.json`` of ``figures_dir``, written by
-    ``make preparation``), one row per ensemble; [] when the study has not been run."""
+    ``make preparation``), one row per ensemble in two tables (failure and memory; what the
+    history leaves in the pile); [] when the study has not been run."""
     p = Path(figures_dir) / "preparation.json"
     if not p.exists():
         return []
@@ -613,35 +623,63 @@ def render_preparation(figures_dir) -> list[str]:
             return "n/a"
         return f"{m:{fmt}} [{lo:{fmt}}, {hi:{fmt}}]" if math.isfinite(lo) else f"{m:{fmt}}"
 
+    def rep(e, key):
+        r = (e.get("repose") or {}).get(key)
+        if not r or not math.isfinite(_num(r.get("estimate"))):
+            return "n/a"
+        lo, hi = _num(r.get("low")), _num(r.get("high"))
+        band = f" [{lo:.1f}, {hi:.1f}]" if math.isfinite(lo) and math.isfinite(hi) else ""
+        return f"{_num(r['estimate']):.1f}{band} ({r.get('n')})"
+
     lines = ["", "## Which pile did the paper analyse? Preparation histories", "",
              "From `preparation.json` (`make preparation PREP_DIRS=...`): the same preset, piles "
-             "tilted back and forth before the analysed ramp (`protocol.pretilt_deg`) against "
-             f"fresh ones ({n['reference']}, the reference); mean [95% bootstrap interval over runs]. "
-             f"The paper's Fig. 5 needs runs whose first onset comes after {QUIET_WINDOW_DEG} deg.", "",
-             "Slides are detected at the fresh piles' Fig. 2a kinetic-energy threshold for every "
-             "ensemble (a prepared ensemble's own threshold can sit at the level of precursors).", "",
-             "| preparation | runs | first 2% onset (deg) | runs quiet past 14.4 deg | first slide (deg; runs that slid) "
-             f"| onsets below {n.get('below_deg', float('nan')):g} deg | <z> quiet | <n_m> quiet | Fig. 2b Ashman D |",
-             "|---|---|---|---|---|---|---|---|---|"]
+             "tilted back and forth before the analysed ramp (`protocol.pretilt_deg`, or "
+             "`protocol.cycles` and `protocol.theta_rev_deg` for Deboeuf et al.'s two cycles past "
+             f"theta_rev) against fresh ones ({n['reference']}, the reference); mean [95% bootstrap "
+             "interval over runs]. The paper's Fig. 5 needs runs whose first onset comes after "
+             f"{QUIET_WINDOW_DEG} deg; Deboeuf et al. give theta_r ~ 15 deg and theta_a ~ 21 deg "
+             "for the paper's piles.", "",
+             "Slides in the ramp are detected at the fresh piles' Fig. 2a kinetic-energy threshold "
+             "for every ensemble. The slide and repose angles come from `tiltpile repose`, which "
+             "tilts each finished run on into its large slide and back until the flow stops "
+             "(runs measured in brackets). The memory: the first frame losing more than 0.5% of its "
+             "contacts (irreversible change, however small) and the first 2% onset over the "
+             "history's amplitude theta_rev.", "",
+             "| preparation | runs | first 2% onset (deg) | runs quiet past 14.4 deg "
+             "| first slide in the ramp (deg; runs) | slide angle (deg; repose) "
+             "| repose angle (deg) | first change > 0.5% (deg) | first onset / theta_rev "
+             "| onsets below theta_rev |",
+             "|---|---|---|---|---|---|---|---|---|---|"]
     best, best_n = None, -1
     for label, e in n["ensembles"].items():
-        onsets = [x for x in e["per_run"]["theta_first_onset"] if x is not None]
-        quiet = sum(x >= QUIET_WINDOW_DEG for x in onsets)
+        quiet = _quiet_past(e)
         if quiet > best_n:
             best, best_n = label, quiet
-        bim = e.get("lost_bimodality") or {}
         slide = "theta_first_slide_ref_ke" if "theta_first_slide_ref_ke_mean" in e else "theta_first_slide"
         lines.append(
             f"| {label} | {e['n_runs']} | {ci(e, 'theta_first_onset', '.2f')} | {quiet} of {e['n_runs']} "
             f"| {ci(e, slide, '.2f')} ({e.get('n_runs_with_slide' + slide[len('theta_first_slide'):])}) "
-            f"| {ci(e, 'n_onsets_below', '.2f')} | {ci(e, 'z_quiet', '.3f')} | {ci(e, 'n_m_quiet', '.4f')} "
-            f"| {_f(_num(bim.get('ashman_d')), '.2f')} |")
+            f"| {rep(e, 'slide_deg')} | {rep(e, 'stop_deg')} | {ci(e, 'theta_first_change', '.2f')} "
+            f"| {ci(e, 'onset_over_rev', '.2f')} | {ci(e, 'n_onsets_below_rev', '.2f')} |")
+    lines += ["", "What the history leaves in the pile (frame 0, after it) and in the ramp's quiet "
+              "frames:", "",
+              "| preparation | <z> quiet | <n_m> quiet | packing fraction at 0 deg "
+              "| fabric anisotropy at 0 deg | fabric major axis (deg from normal) "
+              "| Fig. 2b Ashman D | frames losing no contact |",
+              "|---|---|---|---|---|---|---|---|"]
+    for label, e in n["ensembles"].items():
+        bim = e.get("lost_bimodality") or {}
+        lines.append(
+            f"| {label} | {ci(e, 'z_quiet', '.3f')} | {ci(e, 'n_m_quiet', '.4f')} "
+            f"| {ci(e, 'phi_start', '.4f')} | {ci(e, 'fabric_start', '.3f')} "
+            f"| {ci(e, 'fabric_major_start', '.1f')} | {_f(_num(bim.get('ashman_d')), '.2f')} "
+            f"| {_f(_num(e.get('lost_zero_fraction')), '.0%')} |")
     ref = n["ensembles"][n["reference"]]
     lines.append("")
     if best_n > 0:
         lines.append(f"**{best}** brings the most runs past the paper's {QUIET_WINDOW_DEG} deg before their "
                      f"first onset ({best_n} of {n['ensembles'][best]['n_runs']}; fresh piles: "
-                     f"{sum(x is not None and x >= QUIET_WINDOW_DEG for x in ref['per_run']['theta_first_onset'])}).")
+                     f"{_quiet_past(ref)}).")
     else:
         lines.append(f"No preparation studied brings a run past {QUIET_WINDOW_DEG} deg before its first "
                      "onset; the differences from the fresh piles (first onset, onsets below the "

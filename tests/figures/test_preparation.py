@@ -161,7 +161,7 @@ def test_numbers_equal_the_analysis_run_by_run(study):
             assert 0.5 < pr["phi_start"][k] < 0.91  # below the densest packing of disks
             assert 0.0 <= pr["fabric_start"][k] <= 2.0
             assert -90.0 < pr["fabric_major_start"][k] <= 90.0
-        quiet_past = np.nan_to_num(np.asarray(pr["theta_first_onset"], float), nan=np.inf) > 14.4
+        quiet_past = np.nan_to_num(np.asarray(pr["theta_first_onset"], float), nan=np.inf) >= 14.4
         assert out["n_runs_quiet_past"] == quiet_past.sum()
         # means and intervals over runs are the library's bootstrap of the per-run values
         for q in preparation.PER_RUN:

@@ -159,7 +159,15 @@ def test_preparation_section_counts_runs_quiet_past_the_papers_window(tmp_path):
                                                                           "high": 5.0}}}}}
     (tmp_path / "preparation.json").write_text(json.dumps(doc))
     text = "\n".join(render_preparation(tmp_path))
-    assert "| fresh | 3 | 1.00 [0.50, 1.50] | 0 of 3 |" in text
+    # a run with no onset to the end of its tilt stayed quiet past 14.4 deg, as one whose first
+    # onset comes at 14.4 deg (the paper's Fig. 5 window starts there)
+    assert "| fresh | 3 | 1.00 [0.50, 1.50] | 1 of 3 |" in text
     assert "| prepared | 3 | 1.00 [0.50, 1.50] | 2 of 3 |" in text
-    assert "**prepared** brings the most runs past the paper's 14.4 deg" in text and "(2 of 3; fresh piles: 0)" in text
+    assert "**prepared** brings the most runs past the paper's 14.4 deg" in text
+    # the count the study writes wins over the per-run onsets
+    doc["numbers"]["ensembles"]["prepared"]["n_runs_quiet_past"] = 3
+    (tmp_path / "preparation.json").write_text(json.dumps(doc))
+    text = "\n".join(render_preparation(tmp_path))
+    assert "| prepared | 3 | 1.00 [0.50, 1.50] | 3 of 3 |" in text
+    assert "**prepared** brings the most runs past the paper's 14.4 deg" in text and "(3 of 3; fresh piles: 1)" in text
     assert "- prepared: first onset +3.10 deg [+1.00, +5.00]" in text

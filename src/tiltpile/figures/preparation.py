@@ -70,8 +70,8 @@ PER_RUN = {
 # lowest surface grain's centre
 BULK_MARGIN = 2.0
 
-# the paper's Fig. 5 has quiet frames 14.4 deg before an onset: some of its piles stayed quiet
-# past 14.4 deg
+# the paper's Fig. 5 has quiet frames 14.4 deg before an onset: some of its piles had their
+# first onset at 14.4 deg or later
 QUIET_PAST_DEG = 14.4
 
 # a loss of contacts well below the onset cutoff (9 of ~1800 contacts at 1000 grains): the first
@@ -351,7 +351,7 @@ def compute(ens_list, labels, histories=None, confidence: float = 0.95, **fig2_k
         out = {"pretilt_deg": [float(x) for x in hist], "theta_rev_deg": rev,
                "n_runs": int(e.n_runs), "quiet_past_deg": QUIET_PAST_DEG,
                "n_runs_quiet_past": int((np.nan_to_num(t["theta_first_onset"], nan=np.inf)
-                                         > QUIET_PAST_DEG).sum()),
+                                         >= QUIET_PAST_DEG).sum()),
                "seeds": [int(s) for s in e.seeds], "theta_end_min": n2["theta_end_min"],
                "per_run": {c: t[c].tolist() for c in t.columns if c != "run"}}
         for q in list(PER_RUN) + ["z_start"]:
