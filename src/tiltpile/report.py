@@ -61,9 +61,23 @@ def _figure_stem(figs: dict, prefix: str) -> str | None:
     return hits[0] if hits else None
 
 
-def render(figs: dict[str, dict], claims: list[Claim], scales: list[str] | None = None) -> str:
+STUDIES = {"preparation": "preparation.json", "zcount": "zcount.json"}
+
+
+def load_studies(figures_dir) -> dict[str, dict]:
+    """{name: JSON document} of the studies the verdicts cite (``STUDIES``: the preparation
+    study, ``make preparation``; <z> by counting rule, ``make zcount``), read from the default
+    scale's figures directory (they are made at 1000 grains); absent ones left out."""
+    root = scale_dirs(figures_dir)["default"]
+    return {k: json.loads((root / f).read_text()) for k, f in STUDIES.items()
+            if (root / f).exists()}
+
+
+def render(figs: dict[str, dict], claims: list[Claim], scales: list[str] | None = None,
+           studies: dict | None = None) -> str:
     """The Markdown report for the loaded figure documents (``scales``: lines of
-    :func:`render_scales`, appended)."""
+    :func:`render_scales`, appended; ``studies``: :func:`load_studies`, which the notes of the
+    claims in ``CITES`` cite)."""
     rows, notes = [], []
     any_doc = next(iter(figs.values()), {})
     for c in claims:
@@ -74,6 +88,8 @@ def render(figs: dict[str, dict], claims: list[Claim], scales: list[str] | None 
         else:
             doc = figs[stem]
             ours, verdict, note = c.judge(doc.get("numbers", {}))
+            cite = CITES[c.key](studies) if studies and c.key in CITES else ""
+            note = " ".join(x for x in (note, cite) if x)
             src = f"{doc.get('preset')}, {doc.get('n_runs')} runs of {doc.get('n_grains')} grains"
         rows.append(f"| {c.text} | {c.paper} | {ours} | {src} | **{verdict}** |")
         if note:
@@ -106,7 +122,8 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
     if not figs:
         raise FileNotFoundError(f"no fig*.json in {figures_dir}: run the figure notebooks first")
     text = render(figs, CLAIMS if claims is None else claims,
-                  render_scales(figures_dir) + render_preparation(figures_dir))
+                  render_scales(figures_dir) + render_preparation(figures_dir),
+                  load_studies(figures_dir))
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.tmp")
@@ -597,6 +614,54 @@ def render_scales(figures_dir) -> list[str]:
 
 
 QUIET_WINDOW_DEG = 14.4  # the paper's Fig. 5 shows clusters this far before an onset
+
+
+def _theta_m_cites(studies: dict) -> str:
+    """What the preparation study says of the first onset: per history, the runs quiet past the
+    paper's window and the mean first onset, against the reference (fresh piles)."""
+    n = (studies.get("preparation") or {}).get("numbers")
+    if not n or not n.get("ensembles"):
+        return ""
+    ens = n["ensembles"]
+
+    def part(label):
+        e = ens[label]
+        m, lo, hi = (_num(e.get(f"theta_first_onset_{x}")) for x in ("mean", "ci_low", "ci_high"))
+        band = f" [{lo:.1f}, {hi:.1f}]" if math.isfinite(lo) and math.isfinite(hi) else ""
+        return (f"{label}: {_quiet_past(e)} of {e['n_runs']} runs quiet to 14.4 deg, first onset "
+                f"{_f(m, '.1f')}{band} deg")
+
+    others = [lab for lab in ens if lab != n["reference"]]
+    grains = "/".join(sorted({str(e.get("n_grains")) for e in
+                              studies["preparation"].get("ensembles", [])}))
+    return (f"The preparation study ({grains} grains; section below) shows how the pile's history "
+            f"sets this: {part(n['reference'])}; " + "; ".join(part(lab) for lab in others) + ".")
+
+
+def _z_mean_cites(studies: dict) -> str:
+    """What the counting-rule study says of <z>: the analysis's rule and the least surface gap
+    at which the count reaches the paper's 3.5, per ensemble."""
+    doc = studies.get("zcount")
+    if not doc or not doc.get("ensembles"):
+        return ""
+    parts = []
+    for label, e in doc["ensembles"].items():
+        z = _num((e.get("table", {}).get(e.get("analysis_rule"), {}) or {}).get("z"))
+        reach = e.get("reaches_paper_z") or {}
+        gap = ((reach.get("first_gap") or {}).get("walls=in rattlers=out grains=bulk") or {})
+        g = _num(gap.get("interpolated"))
+        parts.append(f"{label} {_f(z, '.3f')}, 3.5 at gap <= {_f(g, '.2g')} d" if math.isfinite(g)
+                     else f"{label} {_f(z, '.3f')}, 3.5 at no gap up to the alert distance")
+    force = any((e.get("reaches_paper_z") or {}).get("force_rule_reaches")
+                for e in doc["ensembles"].values())
+    return ("By counting rule (`tiltpile zcount`, figures/zcount.png): no force threshold reaches "
+            "3.5, " if not force else "By counting rule (`tiltpile zcount`, figures/zcount.png): ") + (
+            "counting every pair of bulk grains closer than a surface gap g does: "
+            + "; ".join(parts) + ". The paper's ~3.5 is then what a contact list holding the "
+            "near contacts counts, not the force-bearing network.")
+
+
+CITES = {"theta_m": _theta_m_cites, "z_mean": _z_mean_cites}
 
 
 def _quiet_past(e: dict) -> int:

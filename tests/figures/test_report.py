@@ -171,3 +171,33 @@ def test_preparation_section_counts_runs_quiet_past_the_papers_window(tmp_path):
     assert "| prepared | 3 | 1.00 [0.50, 1.50] | 3 of 3 |" in text
     assert "**prepared** brings the most runs past the paper's 14.4 deg" in text and "(3 of 3; fresh piles: 1)" in text
     assert "- prepared: first onset +3.10 deg [+1.00, +5.00]" in text
+
+
+def test_theta_m_and_z_verdicts_cite_the_studies(tmp_path):
+    """The theta_m note cites the preparation study per history, the <z> note the counting-rule
+    study, both read from the default scale's figures directory."""
+    from tiltpile import report
+
+    def ens(q, n, m):
+        return {"n_runs": n, "n_runs_quiet_past": q, "per_run": {"theta_first_onset": []},
+                "theta_first_onset_mean": m, "theta_first_onset_ci_low": m - 1,
+                "theta_first_onset_ci_high": m + 1}
+
+    prep = {"ensembles": [{"n_grains": 1000}, {"n_grains": 1000}],
+            "numbers": {"reference": "fresh", "ensembles": {"fresh": ens(0, 6, 9.7),
+                                                            "±16° 2 cycles": ens(5, 6, 18.5)}}}
+    (tmp_path / "preparation.json").write_text(json.dumps(prep))
+    cites = report._theta_m_cites(report.load_studies(tmp_path))
+    assert "(1000 grains" in cites and "fresh: 0 of 6 runs quiet to 14.4 deg, first onset 9.7 [8.7, 10.7]" in cites
+    assert "±16° 2 cycles: 5 of 6 runs quiet to 14.4 deg, first onset 18.5 [17.5, 19.5] deg" in cites
+    rule = "f_n>0 walls=in rattlers=out grains=bulk"
+    z = {"ensembles": {"fresh": {"analysis_rule": rule, "table": {rule: {"z": 3.215}},
+                                 "reaches_paper_z": {"force_rule_reaches": False, "first_gap": {
+                                     "walls=in rattlers=out grains=bulk": {"interpolated": 0.0019}}}}}}
+    (tmp_path / "zcount.json").write_text(json.dumps(z))
+    cites = report._z_mean_cites(report.load_studies(tmp_path))
+    assert "no force threshold reaches 3.5" in cites and "fresh 3.215, 3.5 at gap <= 0.0019 d" in cites
+    # the paper scale's report reads the studies of the default scale
+    (tmp_path / "paper").mkdir()
+    assert set(report.load_studies(tmp_path / "paper")) == {"preparation", "zcount"}
+    assert report.load_studies(tmp_path / "nowhere") == {}
