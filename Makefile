@@ -39,6 +39,17 @@ test-fast: setup
 # e.g. NB="-p lost_gap 0.0001") need VARIANT=name: the variant's runs go to data/PRESET-VARIANT/
 # (with NB alone, links to the preset's runs) and its figures to figures/VARIANT/
 # (figures/PRESET/VARIANT/ for another preset), leaving the default figures untouched.
+#
+# Records (`tiltpile record`, docs/cli.md): one small file per finished run, RECORDS/run_SSSS.npz
+# (RECORDS default: FIGURES/records/; a variant with NB alone reads its preset's), holding what the
+# figures read from the run, so that a preset's records can be committed in place of its run files
+# (figures/paper/records/). FROM=auto (default): when DATA holds no run files and RECORDS holds
+# records, the figures are built from the records and no ensemble is run; otherwise the ensemble
+# is run as above and, if the directory RECORDS exists, its records are brought up to date with
+# the run files (new or changed runs) before the figures are built from the run files.
+# FROM=records always builds from RECORDS, FROM=runs always from the ensemble.
+# `make records [PRESET=P] [DATA=/path/to/runs] [WORKERS=W]` writes RECORDS from the finished run
+# files of DATA (records up to date are skipped), running nothing else.
 PRESET ?= default
 VARIANT ?=
 SET ?=
@@ -64,17 +75,39 @@ REPORT ?= $(FIGURES)/REPRODUCTION.md
 EXECUTED := notebooks/executed/$(PRESET)-$(VARIANT)
 endif
 
+BASE_FIGURES := $(if $(filter default,$(PRESET)),figures,figures/$(PRESET))
+RECORDS ?= $(if $(strip $(SET)),$(FIGURES),$(BASE_FIGURES))/records
+FROM ?= auto
+ifeq ($(FROM),auto)
+FROM_RECORDS := $(if $(wildcard $(DATA)/run_*.h5),,$(if $(wildcard $(RECORDS)/run_*.npz),yes))
+else ifeq ($(FROM),records)
+FROM_RECORDS := yes
+else ifeq ($(FROM),runs)
+FROM_RECORDS :=
+else
+$(error FROM=$(FROM): give FROM=auto, FROM=runs or FROM=records)
+endif
+# what the notebooks read (data_dir) and the target that stands for it
+ifeq ($(FROM_RECORDS),yes)
+FIG_DATA := $(RECORDS)
+FIG_INPUT := $(EXECUTED)/.records
+else
+FIG_DATA := $(DATA)
+FIG_INPUT := $(DATA)/.runs
+endif
+
 NOTEBOOKS := $(wildcard notebooks/fig*.ipynb)
 FIG_JSON := $(patsubst notebooks/%.ipynb,$(FIGURES)/%.json,$(NOTEBOOKS))
 # what every figure reads besides its own notebook and module
 FIG_COMMON := $(wildcard src/tiltpile/figures/style.py src/tiltpile/figures/data.py \
-                         src/tiltpile/figures/__init__.py src/tiltpile/analysis/*.py)
+                         src/tiltpile/figures/__init__.py src/tiltpile/analysis/*.py \
+                         src/tiltpile/record.py)
 ENSEMBLE_ARGS := $(if $(SCHEDULER),--scheduler $(SCHEDULER)) $(if $(WORKERS),--workers $(WORKERS)) \
                  $(foreach kv,$(SET),--set '$(kv)')
 # notebooks/run_diagnostics.ipynb, if present: executed on the first run of the ensemble
 # (parameters run_file, data_dir, preset, figures_dir); its pictures are not figures of the paper
-# nor a regression baseline, so they go beside the executed notebooks
-DIAGNOSTICS := $(if $(wildcard notebooks/run_diagnostics.ipynb),$(EXECUTED)/diagnostics/.executed)
+# nor a regression baseline, so they go beside the executed notebooks (not from records: no run file)
+DIAGNOSTICS := $(if $(FROM_RECORDS),,$(if $(wildcard notebooks/run_diagnostics.ipynb),$(EXECUTED)/diagnostics/.executed))
 # a file is rewritten only when its new content differs, so that its dependents rebuild only then
 define update_if_changed
 if cmp -s $(1).tmp $(1); then rm -f $(1).tmp; else mv -f $(1).tmp $(1); fi
@@ -97,22 +130,37 @@ endif
 ifeq ($(strip $(NB)),)
 	$(PY) -m tiltpile observables $(DATA) --quiet > /dev/null
 endif
+	@if [ -d $(RECORDS) ]; then set -o pipefail; $(PY) -m tiltpile record $(DATA) --out $(RECORDS) \
+	  --quiet $(if $(WORKERS),--workers $(WORKERS)) | tail -1; fi
 	@stat -L -c '%n %s %Y' $(DATA)/run_*.h5 > $@.tmp; $(call update_if_changed,$@)
+
+# The records instead of the runs (FROM_RECORDS): always checked; the stamp lists every record's
+# SHA-256 and changes only when a record does.
+$(EXECUTED)/.records: FORCE
+	@mkdir -p $(@D)
+	@ls $(RECORDS)/run_*.npz > /dev/null 2>&1 || { echo "no records run_*.npz in $(RECORDS): write them with \
+	  'make records PRESET=$(PRESET) DATA=/path/to/runs'"; exit 2; }
+	@echo "figures from the records in $(RECORDS) ($(words $(wildcard $(RECORDS)/run_*.npz)) runs; no ensemble is run)"
+	@(cd $(RECORDS) && sha256sum run_*.npz) > $@.tmp; $(call update_if_changed,$@)
+
+.PHONY: records
+records: | $(STAMP)
+	$(PY) -m tiltpile record $(DATA) --out $(RECORDS) $(if $(WORKERS),--workers $(WORKERS))
 
 # the notebook parameters of this build, as a file the figures depend on (beside the executed
 # notebooks, which git ignores)
 PARAMETERS := $(EXECUTED)/.notebook-parameters
 $(PARAMETERS): FORCE
 	@mkdir -p $(@D)
-	@echo 'data_dir=$(DATA) preset=$(PRESET) $(NB)' > $@.tmp; $(call update_if_changed,$@)
+	@echo 'data_dir=$(FIG_DATA) preset=$(PRESET) $(NB)' > $@.tmp; $(call update_if_changed,$@)
 
 # one target per figure: notebooks/figN_<name>.ipynb with src/tiltpile/figures/figN.py
 $(FIGURES)/%.json: notebooks/%.ipynb src/tiltpile/figures/$$(firstword $$(subst _, ,$$*)).py \
-                   $(FIG_COMMON) $(DATA)/.runs $(PARAMETERS) | $(STAMP)
+                   $(FIG_COMMON) $(FIG_INPUT) $(PARAMETERS) | $(STAMP)
 	@mkdir -p $(EXECUTED) $(FIGURES)
 	@echo "papermill $< -> $(EXECUTED)/$*.ipynb"
 	@$(PY) -m papermill --kernel tiltpile --cwd $(CURDIR) --no-progress-bar $< $(EXECUTED)/$*.ipynb \
-	  -p data_dir $(DATA) -p preset $(PRESET) -p figures_dir $(FIGURES) $(NB) \
+	  -p data_dir $(FIG_DATA) -p preset $(PRESET) -p figures_dir $(FIGURES) $(NB) \
 	  || { echo "papermill failed: $< (output notebook: $(EXECUTED)/$*.ipynb)"; exit 1; }
 	@test -f $@ || { echo "$< did not write $@"; exit 1; }
 	@touch $@

@@ -4,9 +4,10 @@
 Layers, from the bottom up (``LAYERS``). A module imports only from its own package and from
 layers below its own, never from beside or above it; ``tests/test_layers.py`` enforces this and
 that no import circle exists. Data flows up the same way: a configuration is simulated
-(``sim``, numba kernels that know no files), written (``store``, the only HDF5 code), run one
-(``runner``) or many at a time (``ensemble``), analysed (``analysis``), drawn (``figures``,
-``view``), measured (``bench``) and driven from the command line (``cli``).
+(``sim``, numba kernels that know no files), written (``store``, the only HDF5 code; ``record``,
+what the figures keep of a finished run), run one (``runner``) or many at a time
+(``ensemble``), analysed (``analysis``), drawn (``figures``, ``view``), measured (``bench``) and
+driven from the command line (``cli``).
 
 This package imports nothing itself, so that any layer may read ``tiltpile.__version__``.
 """
@@ -17,7 +18,7 @@ __version__ = "0.1.0"
 LAYERS = (
     ("config", "presets", "sim"),         # validated parameters and presets; the simulator
     ("paths", "health"),                  # output paths; health limits of a run
-    ("store",),                           # the run file (HDF5)
+    ("store", "record"),                  # the run file (HDF5); the run record (figures' inputs)
     ("runner",),                          # one run: simulate, check health, write
     ("ensemble", "analysis"),             # many runs on dask; observables from run files
     ("figures", "report", "bench",        # the paper's figures, the report, measurements,

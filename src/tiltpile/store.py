@@ -719,6 +719,8 @@ class Run:
         except (KeyError, ValueError, TypeError) as e:
             raise RunFileError(f"{self.path}: damaged root attributes ({e})") from None
         self.integrity = str(a.get("integrity", "")) or None
+        # SHA-256 over the attributes (complete files with an integrity record; else None)
+        self.attrs_digest = str(a[ATTRS_DIGEST]) if ATTRS_DIGEST in a else None
         self.radius = self._read("particles/radius")
         self.fixed = self._read("particles/fixed")
         fr = self.f["frames"]
@@ -732,6 +734,7 @@ class Run:
         prep = self.f.get("preparation")
         self.preparation = {k: np.asarray(v) for k, v in prep.attrs.items()} if prep is not None else {}
         self.end_reason = str(a.get("end_reason", "theta_max"))  # files before the end-of-run rule
+        self.end_theta_deg = float(a["end_theta_deg"]) if "end_theta_deg" in a else None
         # the run's solver work (files before it was counted: absent)
         self.cost = {k: int(a[k]) for k in ("steps", "sweeps", "capped_steps") if k in a}
         if "seconds" in a:  # wall time of the invocation that finished it
@@ -771,6 +774,22 @@ class Run:
         a, b = int(self.offset[k]), int(self.offset[k + 1])
         return (self._read("contacts/pair", slice(a, b)), self._read("contacts/force", slice(a, b)),
                 self._read("contacts/status", slice(a, b)))
+
+    def frames_digest(self) -> str:
+        """SHA-256 (hex) over every frame and its contact rows, in order, as stored: the digest a
+        writer's checkpoint carries (``frames_digest``), computed from the finished file, so that
+        a copy of some of its numbers can be traced to it. Reads the whole file (checksums
+        checked). In files written before ``frames/energy_gain`` it covers the NaN read in its
+        place."""
+        h = hashlib.sha256()
+        scalars = {name: getattr(self, name) for name in FRAME_SCALARS}
+        for k in range(self.n_frames):
+            arrays = {name: self._read(f"frames/{name}", k) for name in FRAME_ARRAYS}
+            pair, force, status = self.contacts(k)
+            sets = {"pair": pair, "force": force, "status": status}
+            _digest_frame(h, lambda name: scalars[name][k] if name in scalars
+                          else arrays[name] if name in arrays else sets[name])
+        return h.hexdigest()
 
     def close(self) -> None:
         self.f.close()

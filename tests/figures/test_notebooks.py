@@ -1,7 +1,7 @@
 """Every figure notebook runs through papermill on a tiny smoke ensemble, and its numbers are locked.
 
-The session fixture simulates three smoke piles (seeds 1-3) through the ensemble runner, as
-`make figures PRESET=smoke` would. Each notebook then runs on them exactly as `make figures` runs
+The session fixture (``smoke_ensemble``, tests/figures/conftest.py) simulates three smoke piles
+(seeds 1-3) through the ensemble runner, as `make figures PRESET=smoke` would. Each notebook then runs on them exactly as `make figures` runs
 it (same kernel, same parameters, working directory the repository) and writes its PDF, PNG and
 JSON to a temporary directory. The JSON numbers are compared with the baselines in
 ``tests/figures/test_notebooks/`` (pytest-regressions; regenerate with ``--force-regen`` only for an
@@ -35,22 +35,8 @@ ROOT = Path(__file__).resolve().parents[2]
 NOTEBOOK_DIR = ROOT / "notebooks"
 NOTEBOOKS = sorted(NOTEBOOK_DIR.glob("fig*.ipynb"))
 PAPER = next((ROOT / "paper").glob("*.tex"))
-SEEDS = [1, 2, 3]
+SEEDS = [1, 2, 3]   # the seeds of the session's smoke ensemble (tests/figures/conftest.py)
 RTOL, ATOL = 1e-7, 1e-10
-
-
-@pytest.fixture(scope="session")
-def smoke_ensemble(tmp_path_factory):
-    """Three smoke runs and their observables, as `make figures PRESET=smoke RUNS=3` makes them."""
-    from tiltpile import config
-    from tiltpile.analysis import compute_observables
-    from tiltpile.ensemble import failed_runs, run_ensemble
-
-    out = tmp_path_factory.mktemp("smoke_ensemble")
-    manifest = run_ensemble(config.load("smoke"), SEEDS, out, workers=2, progress=False)
-    assert failed_runs(manifest) == []
-    compute_observables(out, workers=2, progress=False)
-    return out
 
 
 def flatten(numbers, prefix: str = "") -> dict:

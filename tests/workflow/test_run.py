@@ -251,3 +251,23 @@ def test_part_file_that_changed_after_its_checkpoint_is_not_resumed(
     assert summary["resumed_from_frame"] is None
     assert not checkpoint_path(out).exists()
     assert_same_run(out, ref)
+
+
+def test_frames_digest_of_a_finished_file_is_its_writers(tmp_path, monkeypatch):
+    """``Run.frames_digest`` (what a run's record cites, tiltpile.record) is the SHA-256 the
+    writer kept over every frame it appended; ``Run.attrs_digest`` the file's attribute digest."""
+    cfg = config.load("smoke", overrides=CRASHABLE)
+    out = tmp_path / "run.h5"
+    seen = []
+    finish = store.RunWriter.finish
+
+    def keep(self):
+        seen.append(self.digest.hexdigest())
+        return finish(self)
+
+    monkeypatch.setattr(store.RunWriter, "finish", keep)
+    simulate(cfg, 2, out, progress=False)
+    with open_run(out) as r:
+        assert r.n_frames > 1 and r.frames_digest() == seen[0]
+        assert r.attrs_digest is not None and len(r.attrs_digest) == 64
+        assert r.end_theta_deg == pytest.approx(float(r.theta_deg[-1]))

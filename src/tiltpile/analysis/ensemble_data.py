@@ -4,6 +4,11 @@ configuration they share, and the first avalanche onset of each run.
 What the figure notebooks and the measurement studies (``tiltpile.bench.compare_ensembles``)
 start from. The tables are those of :func:`tiltpile.analysis.load_observables` (columns in
 :mod:`tiltpile.analysis.observables`); run files are read through :mod:`tiltpile.store` only.
+
+A directory without run files may hold their records instead (``run_SSSS.npz``,
+:mod:`tiltpile.record`, written by ``tiltpile record``): the same tables at the default analysis
+parameters (without the cluster columns no figure reads), the same configuration, seeds and
+description, and the frames of the pile pictures.
 """
 
 from __future__ import annotations
@@ -15,17 +20,18 @@ import numpy as np
 import pandas as pd
 
 from tiltpile import __version__
-from tiltpile.analysis.observables import load_observables, run_files
+from tiltpile.analysis.observables import ANALYSIS_VERSION, load_observables, run_files, table_params
 
 
 @dataclass
 class Ensemble:
     """An ensemble directory's per-frame and per-cluster tables and a description for the JSON.
 
-    data_dir: the directory of ``run_SSSS.h5``; frames, clusters: the observables tables of all
-    runs (column ``run`` = seed); config: the runs' shared configuration (dict); seeds: sorted by
-    run file name; meta: preset, run count, seeds, grains, config hash, tiltpile version and the
-    analysis parameters (what each figure's JSON records).
+    data_dir: the directory of ``run_SSSS.h5`` (or of their records); frames, clusters: the
+    observables tables of all runs (column ``run`` = seed); config: the runs' shared
+    configuration (dict); seeds: sorted by run file name; meta: preset, run count, seeds, grains,
+    config hash, tiltpile version, the analysis parameters and the runs' cost (what each figure's
+    JSON records); records: {seed: record path} when loaded from records, else empty.
     """
 
     data_dir: Path
@@ -34,6 +40,7 @@ class Ensemble:
     config: dict
     seeds: list[int]
     meta: dict = field(default_factory=dict)
+    records: dict = field(default_factory=dict)
 
     @property
     def n_runs(self) -> int:
@@ -43,8 +50,15 @@ class Ensemble:
         """The run file of ``seed`` (``DIR/run_SSSS.h5``)."""
         p = self.data_dir / f"run_{int(seed):04d}.h5"
         if not p.exists():
-            raise FileNotFoundError(f"{p}: no run file for seed {seed} in {self.data_dir}")
+            how = " (the ensemble was loaded from records)" if self.records else ""
+            raise FileNotFoundError(f"{p}: no run file for seed {seed} in {self.data_dir}{how}")
         return p
+
+    def record_path(self, seed: int) -> Path:
+        """The record of ``seed`` (an ensemble loaded from records)."""
+        if int(seed) not in self.records:
+            raise FileNotFoundError(f"no record of seed {seed} in {self.data_dir}")
+        return self.records[int(seed)]
 
     def sample_seed(self, seed: int | None = None) -> int:
         """``seed`` if given (checked), else the first seed whose run has an avalanche onset."""
@@ -58,18 +72,23 @@ class Ensemble:
 
 
 def load_ensemble(data_dir, preset: str | None = None, **analysis_params) -> Ensemble:
-    """Load (computing if missing) the observables of every ``run_*.h5`` in ``data_dir``.
+    """Load (computing if missing) the observables of every ``run_*.h5`` in ``data_dir``; in a
+    directory without run files, those of its records ``run_*.npz`` (:func:`load_records`).
 
     Refuses (ValueError) an ensemble whose runs have different configurations, and
-    (FileNotFoundError) a directory without run files. ``analysis_params`` go to
+    (FileNotFoundError) a directory without run files or records. ``analysis_params`` go to
     :func:`tiltpile.analysis.load_observables` (cutoff, eps, lost_gap, ...).
     """
+    from tiltpile.record import record_files
     from tiltpile.store import open_run
 
     data_dir = Path(data_dir)
     files = run_files(data_dir)
     if not files:
-        raise FileNotFoundError(f"no run_*.h5 files in {data_dir}: run `tiltpile ensemble` first")
+        if record_files(data_dir):
+            return load_records(data_dir, preset, **analysis_params)
+        raise FileNotFoundError(f"no run_*.h5 files (nor their records run_*.npz) in {data_dir}: "
+                                "run `tiltpile ensemble` first")
     hashes, seeds, cfg, costs = set(), [], None, []
     for f in files:
         with open_run(f) as r:
@@ -80,10 +99,70 @@ def load_ensemble(data_dir, preset: str | None = None, **analysis_params) -> Ens
     if len(hashes) > 1:
         raise ValueError(f"{data_dir} mixes runs of {len(hashes)} configurations")
     frames, clusters = load_observables(data_dir, progress=False, **analysis_params)
-    meta = {"preset": preset, "n_runs": len(seeds), "seeds": seeds, "n_grains": cfg["scene"]["n"],
-            "config_hash": hashes.pop()[:12], "tiltpile_version": __version__,
-            "analysis": dict(analysis_params), "cost": ensemble_cost(costs)}
+    meta = _describe(preset, seeds, cfg, hashes.pop(), analysis_params, costs)
     return Ensemble(data_dir, frames, clusters, cfg, seeds, meta)
+
+
+def _describe(preset, seeds, cfg, config_hash, analysis_params, costs) -> dict:
+    """An ensemble's ``meta`` (the same from run files and from records)."""
+    return {"preset": preset, "n_runs": len(seeds), "seeds": seeds, "n_grains": cfg["scene"]["n"],
+            "config_hash": config_hash[:12], "tiltpile_version": __version__,
+            "analysis": dict(analysis_params), "cost": ensemble_cost(costs)}
+
+
+def _same(a, b) -> bool:
+    """Equal as JSON would write them (tuples as lists, NaN equal to NaN)."""
+    import json
+    return json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
+
+
+def load_records(data_dir, preset: str | None = None, **analysis_params) -> Ensemble:
+    """The ensemble of the records ``run_*.npz`` in ``data_dir`` (:mod:`tiltpile.record`): the
+    same Ensemble as :func:`load_ensemble` gives from their run files, except the cluster
+    columns the records leave out, with ``records`` set (pile pictures:
+    :func:`tiltpile.figures.data.snapshot`).
+
+    A record holds the tables of one analysis version at the default parameters: another
+    ANALYSIS_VERSION, or ``analysis_params`` that change the tables (cutoff, lost_gap, ...), are
+    refused (``tiltpile.record.RecordError``, one line); so are damaged records (every member's
+    checksum is checked) and records of other format versions. Records of different
+    configurations are refused (ValueError), a directory without records is FileNotFoundError.
+    """
+    from tiltpile.record import RecordError, read_record, record_files
+
+    data_dir = Path(data_dir)
+    paths = record_files(data_dir)
+    if not paths:
+        raise FileNotFoundError(f"no records run_*.npz in {data_dir}: write them with "
+                                "`tiltpile record`")
+    wanted = table_params(**analysis_params)
+    hashes, seeds, cfg, costs, fr, cl, records = set(), [], None, [], [], [], {}
+    for path in paths:
+        rec = read_record(path)    # every member, so that every checksum is checked
+        m = rec.meta
+        if m.get("analysis_version") != ANALYSIS_VERSION:
+            raise RecordError(f"{path}: a record of analysis version {m.get('analysis_version')}, "
+                              f"this tiltpile computes version {ANALYSIS_VERSION}; rewrite the "
+                              "records from the run files (`make records`, `tiltpile record`)")
+        if not _same(m.get("analysis_params"), wanted):
+            held = m.get("analysis_params") or {}
+            diff = sorted(k for k in wanted if not _same(wanted[k], held.get(k)))
+            raise RecordError(f"{path}: records hold the tables at the default analysis parameters; "
+                              f"{', '.join(f'{k}={wanted[k]!r}' for k in diff)} needs the run files")
+        hashes.add(m["config_hash"])
+        seeds.append(rec.seed)
+        cfg = m["config"]
+        costs.append(dict(m.get("cost") or {}))
+        fr.append(rec.frames)
+        cl.append(rec.clusters)
+        records[rec.seed] = path
+    if len(hashes) > 1:
+        raise ValueError(f"{data_dir} mixes records of {len(hashes)} configurations")
+    frames = pd.concat(fr, ignore_index=True).sort_values(["run", "frame"], kind="stable")
+    clusters = pd.concat(cl, ignore_index=True).sort_values(["run", "frame", "cluster"], kind="stable")
+    meta = _describe(preset, seeds, cfg, hashes.pop(), analysis_params, costs)
+    return Ensemble(data_dir, frames.reset_index(drop=True), clusters.reset_index(drop=True), cfg,
+                    seeds, meta, records)
 
 
 def ensemble_cost(costs: list[dict]) -> dict:

@@ -336,6 +336,12 @@ def _cache_path(run_path: Path) -> Path:
     return run_path.parent / CACHE_DIRNAME / (run_path.stem + ".npz")
 
 
+def table_params(**params) -> dict:
+    """The analysis parameters the per-frame and per-cluster tables depend on (DEFAULT_PARAMS
+    with ``params`` applied and checked, without the per-run table's RUN_TABLE_PARAMS)."""
+    return {k: v for k, v in _params(params).items() if k not in RUN_TABLE_PARAMS}
+
+
 def _source_meta(run_path: Path, params: dict) -> dict:
     st = run_path.stat()
     cached = {k: v for k, v in params.items() if k not in RUN_TABLE_PARAMS}
@@ -478,6 +484,24 @@ def load_observables(ensemble_dir, compute_missing: bool = True, workers: int | 
     if frames[["run", "frame"]].duplicated().any():
         warnings.warn("several run files share a run id (seed); rows of the same run id mix",
                       RuntimeWarning, stacklevel=2)
+    return frames.reset_index(drop=True), clusters.reset_index(drop=True)
+
+
+def load_run_observables(run_path, compute_missing: bool = True,
+                         **params) -> tuple[pd.DataFrame, pd.DataFrame]:
+    """One run's per-frame and per-cluster tables, as :func:`load_observables` gives its rows of
+    the ensemble: from the run's cache, computed first (in this process) if missing or stale
+    and ``compute_missing``, else FileNotFoundError."""
+    p = _params(params)
+    path = Path(run_path)
+    if not _is_fresh(path, p):
+        if not compute_missing:
+            raise FileNotFoundError(f"observables missing or stale for {path.name}; run "
+                                    f"`tiltpile observables {path.parent}` first")
+        _compute_one(str(path), p)
+    frames, clusters = _read_cache(_cache_path(path))
+    frames = frames.sort_values(["run", "frame"], kind="stable")
+    clusters = clusters.sort_values(["run", "frame", "cluster"], kind="stable")
     return frames.reset_index(drop=True), clusters.reset_index(drop=True)
 
 

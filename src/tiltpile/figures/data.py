@@ -13,7 +13,13 @@ __all__ = ["Ensemble", "load_ensemble", "snapshot"]
 
 def snapshot(ens: Ensemble, seed: int, frame: int) -> dict:
     """Positions, radii, contacts of one stored frame, and the contacts and positions of the next
-    (``next``, ``next_position``; None at the last frame), for the pile pictures of Figs. 1b and 3."""
+    (``next``, ``next_position``; None at the last frame), for the pile pictures of Figs. 1b and 3.
+
+    From the run file, or, for an ensemble loaded from records, from the run's record, which
+    holds the frames the pictures choose by default (``tiltpile.record.RecordError`` for another)."""
+    if ens.records:
+        from tiltpile.record import read_record
+        return read_record(ens.record_path(seed), tables=False).snapshot(frame)
     from tiltpile.store import open_run
     with open_run(ens.run_path(seed)) as r:
         pair, force, status = r.contacts(frame)

@@ -38,6 +38,7 @@ from tiltpile.analysis import stats as _st
 from . import style
 
 NAME = "fig3_clusters_failure"
+SNAPSHOT_OFFSET_DEG = 0.3   # panel a: the quiet frame closest to theta_m minus this (deg)
 
 # grain categories of a snapshot (index into CATEGORY_COLORS)
 GRAIN, FIXED, CLUSTER, FAIL_IN_CLUSTER, FAIL_OUTSIDE = range(5)
@@ -54,7 +55,8 @@ def analysis_params(ens) -> dict:
     return dict(DEFAULT_PARAMS, **(ens.meta.get("analysis") or {}))
 
 
-def frame_before_onset(frames: pd.DataFrame, seed: int, offset_deg: float = 0.3) -> int:
+def frame_before_onset(frames: pd.DataFrame, seed: int,
+                       offset_deg: float = SNAPSHOT_OFFSET_DEG) -> int:
     """The quiet frame of run ``seed`` closest to theta_m - offset_deg (theta_m: first onset).
 
     Only quiet frames before the first onset are candidates (ties: the earlier frame). Without an
@@ -295,7 +297,7 @@ def _at(df: pd.DataFrame, col: str, tau: int) -> float:
 # ----------------------------------------------------------------------------------------------
 
 
-def compute(ens, sample_seed: int | None = None, snapshot_offset_deg: float = 0.3,
+def compute(ens, sample_seed: int | None = None, snapshot_offset_deg: float = SNAPSHOT_OFFSET_DEG,
             failure_column: str = "n_lost", taus=range(-10, 11), enhancement_taus=range(0, 6),
             fraction_bin_width: float = 0.05, min_failing: int = 5,
             orientation_min_size: int = 5, snapshot: bool = True) -> tuple[dict, dict]:

@@ -1,0 +1,69 @@
+"""``tiltpile record DIR --out RECORDS``: a small record of every finished run of an ensemble,
+what the figures read from it (``tiltpile.figures.records``), to commit in place of the run
+files."""
+
+from __future__ import annotations
+
+import sys
+from pathlib import Path
+
+from tiltpile.cli._common import ConfigError
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("record", help="write the records of an ensemble's finished runs (what the "
+                                      "figures read; committed in place of the run files)")
+    p.add_argument("dir", help="ensemble directory holding run_*.h5")
+    p.add_argument("--out", type=Path, required=True, metavar="RECORDS",
+                   help="records directory: RECORDS/run_SSSS.npz, one per run file")
+    p.add_argument("--workers", type=int, default=None,
+                   help="processes for observables not cached yet (default: one per core)")
+    p.add_argument("--force", action="store_true", help="rewrite the records that are up to date too")
+    p.add_argument("--quiet", action="store_true", help="no progress bar")
+    p.set_defaults(func=run)
+
+
+def run(args) -> int:
+    """Validate everything, then write the missing and stale records and print one line per run
+    file (record, written / up to date, size). Refused before anything is written: DIR without
+    run files or mixing configurations (or another than its ``ensemble.json``), --out that is DIR
+    itself or its observables cache or cannot be written, --out holding records of another
+    configuration."""
+    from tiltpile.ensemble import read_manifest
+    from tiltpile.figures.records import foreign_records, write_records
+    from tiltpile.paths import check_output
+    from tiltpile.record import RecordError
+    from tiltpile.store import common_config
+
+    d = Path(args.dir)
+    if not d.is_dir():
+        raise ConfigError(f"{d}: no such ensemble directory")
+    if args.workers is not None and args.workers < 1:
+        raise ConfigError(f"--workers must be at least 1, got {args.workers}")
+    files = sorted(d.glob("run_*.h5"))
+    if not files:
+        raise ConfigError(f"{d}: no finished run files (run_*.h5) to record")
+    out = args.out
+    if out.exists() and out.resolve() in (d.resolve(), (d / "observables").resolve()):
+        raise ConfigError(f"--out {out} is the ensemble directory or its observables cache; "
+                          "give the records their own directory")
+    check_output(out, "records directory", directory=True)
+    manifest = read_manifest(d)
+    config_hash, _ = common_config(files, manifest["config_hash"] if manifest else None)
+    odd = foreign_records(out, config_hash)
+    if odd:
+        raise ConfigError(f"{out}: {odd[0].name}{f' and {len(odd) - 1} more' if len(odd) > 1 else ''} "
+                          f"hold runs of another configuration than {d} (hash {config_hash[:12]}); "
+                          "one records directory holds one configuration")
+    try:
+        table = write_records(d, out, workers=args.workers, force=args.force,
+                              progress=not args.quiet)
+    except RecordError as e:
+        print(f"tiltpile record: error: {' '.join(str(e).split())}", file=sys.stderr)
+        return 1
+    for rec, status, size in zip(table["record"], table["status"], table["bytes"]):
+        print(f"{rec}  {status}  {size / 1e6:.2f} MB")
+    written = int((table["status"] == "written").sum())
+    print(f"{len(table)} records in {out}: {written} written, {len(table) - written} up to date, "
+          f"{table['bytes'].sum() / 1e6:.2f} MB")
+    return 0
