@@ -184,12 +184,30 @@ bench: setup
 clean-data:
 	rm -rf data/
 
-# `make preparation PREP_DIRS="data/default data/default-prep10" [PREP_LABELS="fresh|±10° once"]
-#                   [PREP_FIGURES=figures]`: the preparation study (issue 16), notebooks/preparation.ipynb
-# on the ensembles of PREP_DIRS (the first is the reference, normally fresh piles) into
-# PREP_FIGURES/preparation.{png,pdf,json}. The ensembles must exist (their observables are computed
-# if missing); PREP_LABELS, '|'-separated, default to each ensemble's preparation history.
-PREP_DIRS ?= data/default
+# `make preparation [PREP_HISTORIES="fresh cyc10 cyc16 cyc18"] [PREP_ROOT=data/preparation]
+#                   [PREP_RUNS=6] [PREP_WORKERS=W] [PREP_LABELS="fresh|..."] [PREP_FIGURES=figures]`:
+# the preparation study (docs/figures.md). For each history H of PREP_HISTORIES, the ensemble
+# PREP_ROOT/H of the default preset with the settings PREP_SET_H (PREP_RUNS seeds from 0;
+# finished runs are skipped, interrupted ones resume) and its repose angles, PREP_ROOT/H/repose.json
+# (`tiltpile repose`, redone when a run file is newer); then notebooks/preparation.ipynb on them
+# (the first history is the reference, normally fresh piles) into
+# PREP_FIGURES/preparation.{png,pdf,json}. PREP_DIRS="dir ..." instead names existing ensembles
+# and runs nothing. `make zcount` charts <z> by counting rule on the same ensembles
+# (`tiltpile zcount`, PREP_FIGURES/zcount.{png,json}). About 3 hours on two cores for the four
+# histories (a cycled run costs about twice a fresh one).
+PREP_ROOT ?= data/preparation
+PREP_RUNS ?= 6
+PREP_WORKERS ?=
+PREP_HISTORIES ?= fresh cyc10 cyc16 cyc18
+# Deboeuf et al.'s history: 0 -> theta_rev, two full cycles +-theta_rev, back to 0
+PREP_SET_fresh :=
+PREP_SET_cyc10 := protocol.cycles=2 protocol.theta_rev_deg=10.0
+PREP_SET_cyc16 := protocol.cycles=2 protocol.theta_rev_deg=16.0
+PREP_SET_cyc18 := protocol.cycles=2 protocol.theta_rev_deg=18.0
+# the same history at 10x the ramp's rate (0.02 deg per step in its legs): the rate check
+PREP_SET_cyc16r10 := $(PREP_SET_cyc16) protocol.pretilt_per_step_deg=0.02
+PREP_GIVEN := $(PREP_DIRS)
+PREP_DIRS ?= $(foreach h,$(PREP_HISTORIES),$(PREP_ROOT)/$(h))
 PREP_LABELS ?=
 PREP_FIGURES ?= figures
 prep_comma := ,
@@ -198,11 +216,26 @@ prep_space := $(prep_empty) $(prep_empty)
 PREP_PARAMS = {"data_dirs": [$(subst $(prep_space),$(prep_comma),$(foreach d,$(PREP_DIRS),"$(d)"))], \
                "labels": [$(if $(strip $(PREP_LABELS)),"$(subst |,"$(prep_comma)",$(PREP_LABELS))")], \
                "figures_dir": "$(PREP_FIGURES)"}
-.PHONY: preparation
-preparation: | $(STAMP)
+.PHONY: preparation preparation-runs zcount
+preparation-runs: | $(STAMP)
+ifeq ($(strip $(PREP_GIVEN)),)
+	@$(foreach h,$(PREP_HISTORIES),\
+	  $(PY) -m tiltpile ensemble --preset default --runs $(PREP_RUNS) --out $(PREP_ROOT)/$(h) \
+	    $(if $(PREP_WORKERS),--workers $(PREP_WORKERS)) $(foreach kv,$(PREP_SET_$(h)),--set '$(kv)') \
+	  && { test -f $(PREP_ROOT)/$(h)/repose.json \
+	       && test -z "$$(find $(PREP_ROOT)/$(h) -maxdepth 1 -name 'run_*.h5' -newer $(PREP_ROOT)/$(h)/repose.json)" \
+	       || $(PY) -m tiltpile repose $(PREP_ROOT)/$(h) --json $(PREP_ROOT)/$(h)/repose.json \
+	            $(if $(PREP_WORKERS),--workers $(PREP_WORKERS)); } || exit 1;)
+endif
+
+preparation: preparation-runs | $(STAMP)
 	@mkdir -p notebooks/executed $(PREP_FIGURES)
 	@echo "papermill notebooks/preparation.ipynb -> notebooks/executed/preparation.ipynb"
 	@$(PY) -m papermill --kernel tiltpile --cwd $(CURDIR) --no-progress-bar notebooks/preparation.ipynb \
 	  notebooks/executed/preparation.ipynb -y '$(PREP_PARAMS)' \
 	  || { echo "papermill failed: notebooks/preparation.ipynb (output notebook: notebooks/executed/preparation.ipynb)"; exit 1; }
 	@test -f $(PREP_FIGURES)/preparation.json || { echo "notebooks/preparation.ipynb did not write $(PREP_FIGURES)/preparation.json"; exit 1; }
+
+zcount: preparation-runs | $(STAMP)
+	@mkdir -p $(PREP_FIGURES)
+	$(PY) -m tiltpile zcount $(PREP_DIRS) --out $(PREP_FIGURES)/zcount $(if $(PREP_WORKERS),--workers $(PREP_WORKERS))
