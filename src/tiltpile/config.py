@@ -32,7 +32,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-PRESETS = ("smoke", "default", "paper")
+PRESETS = ("smoke", "default", "paper", "paper-fresh")
 
 
 class ConfigError(ValueError):
@@ -422,10 +422,15 @@ def read_toml(path: str | Path) -> dict[str, Any]:
 
 
 def preset_dict(name: str) -> dict[str, Any]:
+    """The table of preset ``name``. A preset may start from another: a top-level
+    ``base = "other"`` merges its tables over those of ``other`` (``paper-fresh`` is ``paper``
+    without the history)."""
     if name not in PRESETS:
         raise ConfigError(f"unknown preset {name!r}; choose one of {', '.join(PRESETS)}")
     text = resources.files("tiltpile.presets").joinpath(f"{name}.toml").read_text()
-    return tomllib.loads(text)
+    data = tomllib.loads(text)
+    base = data.pop("base", None)
+    return _merge(preset_dict(base), data) if base is not None else data
 
 
 def load(preset: str = "smoke", config_file: str | Path | None = None,

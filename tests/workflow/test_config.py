@@ -20,6 +20,16 @@ def test_paper_preset_matches_the_paper():
     assert cfg.protocol.theta_max_deg == 30.0 and cfg.scene.polydispersity == 0.2
 
 
+def test_paper_fresh_is_the_paper_preset_without_its_history():
+    """presets/paper-fresh.toml starts from paper.toml (``base``) and drops the history only: every
+    other value is the paper preset's, and its hash is that of the fresh paper runs."""
+    import dataclasses
+    paper, fresh = config.load("paper"), config.load("paper-fresh")
+    assert fresh.protocol.pretilt_deg == ()
+    assert dataclasses.replace(paper, protocol=dataclasses.replace(paper.protocol, pretilt_deg=())) == fresh
+    assert fresh.hash().startswith("a2a1ff442489")  # the fresh paper runs measured so far
+
+
 @pytest.mark.parametrize("override, words", [
     ("scene.mu=-0.1", ["scene.mu", "[0.0, inf)"]),
     ("scene.n=0", ["scene.n", "[1,"]),

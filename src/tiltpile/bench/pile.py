@@ -20,7 +20,7 @@ from tiltpile.sim import protocol
 CACHE = Path("data/bench")
 
 
-def bench_config(n: int, preset: str = "paper", config_file=None, overrides=()) -> cfgmod.Config:
+def bench_config(n: int, preset: str = "paper-fresh", config_file=None, overrides=()) -> cfgmod.Config:
     """The configuration of a bench pile of ``n`` grains: ``preset`` (+ ``config_file``,
     ``overrides``) with ``scene.n = n`` and ``scene.box_length = max(10, 120 n / 4000)`` [d].
     Raises ConfigError for n < 1 or an invalid override."""
@@ -58,13 +58,13 @@ def settled_pile(cfg: cfgmod.Config, seed: int, progress: bool = True, cache: Pa
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m tiltpile.bench.pile N [--preset paper] [--seed 0]``: deposit and cache a bench pile."""
+    """``python -m tiltpile.bench.pile N [--preset paper-fresh] [--seed 0]``: deposit and cache a bench pile."""
     import argparse
     import sys
 
     ap = argparse.ArgumentParser(prog="python -m tiltpile.bench.pile", description=main.__doc__)
     ap.add_argument("n", type=int, help="mobile grains")
-    ap.add_argument("--preset", choices=cfgmod.PRESETS, default="paper")
+    ap.add_argument("--preset", choices=cfgmod.PRESETS, default="paper-fresh")
     ap.add_argument("--seed", type=int, default=0)
     a = ap.parse_args(argv)
     try:

@@ -10,7 +10,7 @@ time of a whole step) and ``ns_per_contact_update`` (wall time / local solves ma
 contacts x sweeps less those a pruned sweep leaves out: the cost of one local solve, everything
 else in the step amortised into it).
 
-Usage: ``python -m tiltpile.bench.timing [--n 4000] [--steps 200] [--preset paper] [--seed 0]
+Usage: ``python -m tiltpile.bench.timing [--n 4000] [--steps 200] [--preset paper-fresh] [--seed 0]
 [--json]`` (the same as ``tiltpile bench``).
 """
 
@@ -25,7 +25,7 @@ from tiltpile import config as cfgmod
 from tiltpile.bench.pile import bench_config, settled_pile
 
 
-def time_pile(n: int = 4000, steps: int = 200, preset: str = "paper", config_file=None,
+def time_pile(n: int = 4000, steps: int = 200, preset: str = "paper-fresh", config_file=None,
               overrides=(), seed: int = 0, progress: bool = True) -> dict:
     """Time ``steps`` tilt steps of the bench pile of ``n`` grains (module docstring); returns a
     dict of the reported numbers plus n, preset, steps, tol, sweep and dt."""
@@ -59,7 +59,7 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tiltpile.bench.timing", description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=4000, help="mobile grains (box length scales with n)")
     ap.add_argument("--steps", type=int, default=200, help="steps to time")
-    ap.add_argument("--preset", choices=cfgmod.PRESETS, default="paper")
+    ap.add_argument("--preset", choices=cfgmod.PRESETS, default="paper-fresh")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     a = ap.parse_args(argv)

@@ -10,7 +10,7 @@ from tiltpile.cli._common import ConfigError, add_config_args, seed
 
 def add_parser(sub) -> None:
     b = sub.add_parser("bench", help="time NLGS steps on a settled pile")
-    add_config_args(b, default_preset="paper")
+    add_config_args(b, default_preset="paper-fresh")
     b.add_argument("--n", type=int, default=4000, help="mobile grains (box length scales with n)")
     b.add_argument("--steps", type=int, default=200, help="steps to time")
     b.add_argument("--seed", type=seed, default=0)
@@ -40,7 +40,7 @@ def _chart(args) -> int:
     """``bench --chart DIR``: the speed x accuracy chart (tiltpile.bench.chart)."""
     given = [name for name, value, default in (
         ("--n", args.n, 4000), ("--steps", args.steps, 200), ("--seed", args.seed, 0),
-        ("--set", args.overrides, []), ("--config", args.config, None), ("--preset", args.preset, "paper"))
+        ("--set", args.overrides, []), ("--config", args.config, None), ("--preset", args.preset, "paper-fresh"))
         if value != default]
     if given:
         raise ConfigError(f"{', '.join(given)} do not apply to --chart (its scenes are fixed: "
