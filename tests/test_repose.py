@@ -46,6 +46,9 @@ def test_the_smoke_pile_slides_then_stops_lower(measured, smoke_run, smoke_confi
     assert r.start_deg == pytest.approx(p.theta_max_deg)  # the run's frames establish no slide
     assert r.start_frame == protocol.n_frames(p) - 1
     assert 0 < r.stop_deg < r.slide_deg <= r.reverse_deg
+    # the slide carried grains downhill (towards x = L): the stopped surface rises there, so it
+    # lies flatter to the horizontal than the box
+    assert 0 < r.surface_deg < r.stop_deg
     assert r.slide_deg <= r.start_deg + r.forward_steps * p.tilt_per_step_deg + 1e-9
     # the trace: forward frames, then the reverse ramp down to the stop, a frame every frame_every steps
     fwd, rev = r.direction == 1, r.direction == -1
@@ -119,6 +122,17 @@ def test_sustained_start():
 def test_bad_parameters_are_refused(kw, message, smoke_run):
     with pytest.raises(ValueError, match=message):
         rp.repose(smoke_run[0], **kw)
+
+
+def test_surface_tilt_of_a_tilted_layer():
+    """A row of grains whose tops rise by 1 d over 10 d: tilt atan(0.1), towards x = L."""
+    x = np.arange(0.5, 30.0, 1.0)
+    pos = np.stack([x, 5.0 + 0.1 * x], axis=1)
+    r = np.full(len(x), 0.5)
+    tilt = rp.surface_tilt_deg(pos, r, np.zeros(len(x), bool), 30.0)
+    assert tilt == pytest.approx(np.degrees(np.arctan(0.1)))
+    assert rp.surface_tilt_deg(pos[:1], r[:1], np.zeros(1, bool), 30.0) != rp.surface_tilt_deg(
+        pos[:1], r[:1], np.zeros(1, bool), 30.0)  # one grain: NaN
 
 
 def test_summary_over_runs():

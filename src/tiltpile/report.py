@@ -707,14 +707,16 @@ def render_preparation(figures_dir) -> list[str]:
              "Slides in the ramp are detected at the fresh piles' Fig. 2a kinetic-energy threshold "
              "for every ensemble. The slide and repose angles come from `tiltpile repose`, which "
              "tilts each finished run on into its large slide and back until the flow stops "
-             "(runs measured in brackets). The memory: the first frame losing more than 0.5% of its "
+             "(runs measured in brackets); the repose angle is the box's angle then, and the slope "
+             "of the free surface to the horizontal (lower: the slide has piled grains downhill). The memory: the first frame losing more than 0.5% of its "
              "contacts (irreversible change, however small) and the first 2% onset over the "
              "history's amplitude theta_rev.", "",
              "| preparation | runs | first 2% onset (deg) | runs quiet past 14.4 deg "
              "| first slide in the ramp (deg; runs) | slide angle (deg; repose) "
-             "| repose angle (deg) | first change > 0.5% (deg) | first onset / theta_rev "
+             "| repose angle: box (deg) | repose angle: surface (deg) "
+             "| first change > 0.5% (deg) | first onset / theta_rev "
              "| onsets below theta_rev |",
-             "|---|---|---|---|---|---|---|---|---|---|"]
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     best, best_n = None, -1
     for label, e in n["ensembles"].items():
         quiet = _quiet_past(e)
@@ -724,7 +726,8 @@ def render_preparation(figures_dir) -> list[str]:
         lines.append(
             f"| {label} | {e['n_runs']} | {ci(e, 'theta_first_onset', '.2f')} | {quiet} of {e['n_runs']} "
             f"| {ci(e, slide, '.2f')} ({e.get('n_runs_with_slide' + slide[len('theta_first_slide'):])}) "
-            f"| {rep(e, 'slide_deg')} | {rep(e, 'stop_deg')} | {ci(e, 'theta_first_change', '.2f')} "
+            f"| {rep(e, 'slide_deg')} | {rep(e, 'stop_deg')} | {rep(e, 'surface_deg')} "
+            f"| {ci(e, 'theta_first_change', '.2f')} "
             f"| {ci(e, 'onset_over_rev', '.2f')} | {ci(e, 'n_onsets_below_rev', '.2f')} |")
     lines += ["", "What the history leaves in the pile (frame 0, after it) and in the ramp's quiet "
               "frames:", "",

@@ -90,6 +90,7 @@ class Repose:
     slide_deg: float         # first frame of the sustained slide
     reverse_deg: float       # angle at which the tilt was reversed
     stop_deg: float          # first reverse frame of the sustained quiet span: the repose angle
+    surface_deg: float       # the free surface's slope to the horizontal once stopped
     forward_steps: int
     reverse_steps: int
     steps: int
@@ -205,6 +206,26 @@ def sustained_start(values, above: bool, threshold: float, n: int) -> int:
     return -1
 
 
+SURFACE_MARGIN = 4.0  # [d] from each side wall: the surface fit leaves the wall regions out
+
+
+def surface_tilt_deg(position, radius, fixed, box_length: float,
+                     margin: float = SURFACE_MARGIN) -> float:
+    """The free surface's tilt against the box floor [deg], positive when it rises towards the
+    wall at x = L (where the pile flows at positive theta): the least-squares line through the
+    tops (y + r) of the top-layer grains (:func:`tiltpile.analysis.contacts.top_layer`) between
+    ``margin`` and L - ``margin``. The surface's slope to the horizontal at box angle theta is
+    theta minus this (the angle a repose angle is usually quoted as)."""
+    from tiltpile.analysis.contacts import top_layer
+    pos = np.asarray(position, dtype=float)
+    top = top_layer(pos, radius, fixed, box_length)
+    sel = top & (pos[:, 0] >= margin) & (pos[:, 0] <= box_length - margin)
+    if sel.sum() < 2:
+        return math.nan
+    slope = np.polyfit(pos[sel, 0], pos[sel, 1] + np.asarray(radius)[sel], 1)[0]
+    return float(np.degrees(np.arctan(slope)))
+
+
 def repose(run_file, *, ke_slide: float = KE_SLIDE, ke_stop: float = KE_STOP,
            slide_span_deg: float = SLIDE_SPAN_DEG, stop_span_deg: float = STOP_SPAN_DEG,
            max_deg: float = MAX_DEG, min_deg: float = MIN_DEG, from_last: bool = False,
@@ -273,7 +294,7 @@ def repose(run_file, *, ke_slide: float = KE_SLIDE, ke_stop: float = KE_STOP,
         return ke
 
     bar = _Bar(Path(run_file).name, progress)
-    slide = reverse = stop = math.nan
+    slide = reverse = stop = surface = math.nan
     try:
         # forward: the run's trailing frames above ke_slide count towards the span
         above = 0
@@ -300,6 +321,8 @@ def repose(run_file, *, ke_slide: float = KE_SLIDE, ke_stop: float = KE_STOP,
                     below = 0
             if below >= n_stop:
                 stop = float(first_below)
+                surface = angle() - surface_tilt_deg(sysm.pos, sysm.radius, sysm.fixed,
+                                                     cfg.scene.box_length)
             outcome = "stopped" if below >= n_stop else "no stop"
         else:
             outcome = "no slide"
@@ -308,7 +331,7 @@ def repose(run_file, *, ke_slide: float = KE_SLIDE, ke_stop: float = KE_STOP,
     reverse_steps = forward_steps - net
     return Repose(run=str(run_file), seed=int(seed), outcome=outcome, start_frame=int(start_frame),
                   start_deg=start,
-                  slide_deg=slide, reverse_deg=reverse, stop_deg=stop,
+                  slide_deg=slide, reverse_deg=reverse, stop_deg=stop, surface_deg=surface,
                   forward_steps=int(forward_steps), reverse_steps=int(reverse_steps),
                   steps=int(forward_steps + reverse_steps), sweeps=int(sc["sweeps"]),
                   capped_steps=int(sc["capped_steps"]), max_overlap=worst["overlap"],
@@ -348,7 +371,7 @@ def _failed(path, seed: int, params: dict, error: str) -> Repose:
     nan = math.nan
     return Repose(run=str(path), seed=seed, outcome="failed", start_frame=-1, start_deg=nan,
                   slide_deg=nan,
-                  reverse_deg=nan, stop_deg=nan, forward_steps=0, reverse_steps=0, steps=0,
+                  reverse_deg=nan, stop_deg=nan, surface_deg=nan, forward_steps=0, reverse_steps=0, steps=0,
                   sweeps=0, capped_steps=0, max_overlap=nan, max_energy_gain=nan, seconds=0.0,
                   params=params, theta_deg=empty, ke=empty, direction=empty.astype(np.int8),
                   sweeps_per_frame=empty.astype(np.int64), error=error)
@@ -420,7 +443,9 @@ def summarize(results) -> dict:
     stop = np.array([r.stop_deg for r in results], dtype=float)
     slide = np.array([r.slide_deg for r in results], dtype=float)
     out = {"runs": len(results), "outcomes": {o: sum(r.outcome == o for r in results) for o in OUTCOMES}}
-    for name, values in (("stop_deg", stop), ("slide_deg", slide), ("slide_minus_stop_deg", slide - stop)):
+    surface = np.array([r.surface_deg for r in results], dtype=float)
+    for name, values in (("stop_deg", stop), ("slide_deg", slide), ("slide_minus_stop_deg", slide - stop),
+                         ("surface_deg", surface)):
         ci = bootstrap_ci(values)
         out[name] = {k: ci[k] for k in ("estimate", "low", "high", "n", "confidence", "method")}
     out.update(steps=int(sum(r.steps for r in results)), sweeps=int(sum(r.sweeps for r in results)),

@@ -89,7 +89,8 @@ def _line(r) -> str:
     cost = f"{r.steps} steps, {r.sweeps} sweeps, {r.seconds:.1f} s"
     if r.outcome == "stopped":
         return (f"{name}: slide from {r.slide_deg:.2f} deg, reversed at {r.reverse_deg:.2f} deg, "
-                f"flow stops at {r.stop_deg:.2f} deg ({cost})")
+                f"flow stops at {r.stop_deg:.2f} deg, its surface then at {r.surface_deg:.2f} deg "
+                f"to the horizontal ({cost})")
     if r.outcome == "no slide":
         return f"{name}: no slide from {r.start_deg:.2f} up to {r.params['max_deg']:.2f} deg ({cost})"
     if r.outcome == "no stop":
@@ -108,7 +109,8 @@ def _summary_line(s: dict) -> str:
         hi = "nan" if d["high"] is None else f"{d['high']:.2f}"
         return f"{d['estimate']:.2f} deg [{lo}, {hi}]"
 
-    return (f"stop angle {ci(s['stop_deg'])}, slide angle {ci(s['slide_deg'])} (mean, bootstrap "
+    return (f"stop angle {ci(s['stop_deg'])} (surface {ci(s['surface_deg'])}), slide angle "
+            f"{ci(s['slide_deg'])} (mean, bootstrap "
             f"95% over runs; {o['stopped']} of {s['runs']} runs stopped, {o['no slide']} no slide, "
             f"{o['no stop']} no stop, {o['failed']} failed)")
 

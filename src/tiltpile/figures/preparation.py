@@ -211,8 +211,8 @@ REPOSE_FILE = "repose.json"
 def repose_numbers(ens) -> dict | None:
     """The repose angle of the ensemble's piles (:mod:`tiltpile.repose`), from
     ``DIR/repose.json`` as ``tiltpile repose DIR --json DIR/repose.json`` writes it: the stop
-    angle (our repose angle) and the slide angle, mean and bootstrap interval over runs, and
-    per seed. None when the file is absent; ValueError when its runs are not the ensemble's."""
+    angle (our repose angle, the box's), the free surface's slope to the horizontal once stopped,
+    and the slide angle, mean and bootstrap interval over runs, and per seed. None when the file is absent; ValueError when its runs are not the ensemble's."""
     import json
     p = Path(ens.data_dir) / REPOSE_FILE
     if not p.exists():
@@ -225,6 +225,7 @@ def repose_numbers(ens) -> dict | None:
     by_seed = {int(r["seed"]): r for r in doc["runs"]}
     summ = doc["summary"]
     return {"stop_deg": summ["stop_deg"], "slide_deg": summ["slide_deg"],
+            "surface_deg": summ.get("surface_deg"),
             "outcomes": summ["outcomes"],
             "stop_deg_per_run": [by_seed[int(s)].get("stop_deg") for s in ens.seeds],
             "slide_deg_per_run": [by_seed[int(s)].get("slide_deg") for s in ens.seeds],
