@@ -124,17 +124,6 @@ def test_bad_parameters_are_refused(kw, message, smoke_run):
         rp.repose(smoke_run[0], **kw)
 
 
-def test_surface_tilt_of_a_tilted_layer():
-    """A row of grains whose tops rise by 1 d over 10 d: tilt atan(0.1), towards x = L."""
-    x = np.arange(0.5, 30.0, 1.0)
-    pos = np.stack([x, 5.0 + 0.1 * x], axis=1)
-    r = np.full(len(x), 0.5)
-    tilt = rp.surface_tilt_deg(pos, r, np.zeros(len(x), bool), 30.0)
-    assert tilt == pytest.approx(np.degrees(np.arctan(0.1)))
-    assert rp.surface_tilt_deg(pos[:1], r[:1], np.zeros(1, bool), 30.0) != rp.surface_tilt_deg(
-        pos[:1], r[:1], np.zeros(1, bool), 30.0)  # one grain: NaN
-
-
 def test_summary_over_runs():
     def fake(stop, slide, outcome="stopped"):
         r = rp._failed("x", 0, {}, "")

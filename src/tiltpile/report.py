@@ -733,14 +733,15 @@ def render_preparation(figures_dir) -> list[str]:
               "frames:", "",
               "| preparation | <z> quiet | <n_m> quiet | packing fraction at 0 deg "
               "| fabric anisotropy at 0 deg | fabric major axis (deg from normal) "
-              "| Fig. 2b Ashman D | frames losing no contact |",
-              "|---|---|---|---|---|---|---|---|"]
+              "| surface tilt at 0 deg | Fig. 2b Ashman D | frames losing no contact |",
+              "|---|---|---|---|---|---|---|---|---|"]
     for label, e in n["ensembles"].items():
         bim = e.get("lost_bimodality") or {}
         lines.append(
             f"| {label} | {ci(e, 'z_quiet', '.3f')} | {ci(e, 'n_m_quiet', '.4f')} "
             f"| {ci(e, 'phi_start', '.4f')} | {ci(e, 'fabric_start', '.3f')} "
-            f"| {ci(e, 'fabric_major_start', '.1f')} | {_f(_num(bim.get('ashman_d')), '.2f')} "
+            f"| {ci(e, 'fabric_major_start', '.1f')} | {ci(e, 'surface_tilt_start', '.2f')} "
+            f"| {_f(_num(bim.get('ashman_d')), '.2f')} "
             f"| {_f(_num(e.get('lost_zero_fraction')), '.0%')} |")
     ref = n["ensembles"][n["reference"]]
     lines.append("")

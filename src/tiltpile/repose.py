@@ -58,6 +58,7 @@ import numpy as np
 from tiltpile import config as cfgmod
 from tiltpile.sim import protocol
 from tiltpile.sim.step import System
+from tiltpile.analysis.structure import surface_tilt_deg
 from tiltpile.store import Run, RunFileError, open_run
 
 KE_SLIDE = 1e-3       # [m g d] per mobile grain: a large slide (paper preset's protocol.end_ke)
@@ -204,26 +205,6 @@ def sustained_start(values, above: bool, threshold: float, n: int) -> int:
         if count >= n:
             return i - n + 1
     return -1
-
-
-SURFACE_MARGIN = 4.0  # [d] from each side wall: the surface fit leaves the wall regions out
-
-
-def surface_tilt_deg(position, radius, fixed, box_length: float,
-                     margin: float = SURFACE_MARGIN) -> float:
-    """The free surface's tilt against the box floor [deg], positive when it rises towards the
-    wall at x = L (where the pile flows at positive theta): the least-squares line through the
-    tops (y + r) of the top-layer grains (:func:`tiltpile.analysis.contacts.top_layer`) between
-    ``margin`` and L - ``margin``. The surface's slope to the horizontal at box angle theta is
-    theta minus this (the angle a repose angle is usually quoted as)."""
-    from tiltpile.analysis.contacts import top_layer
-    pos = np.asarray(position, dtype=float)
-    top = top_layer(pos, radius, fixed, box_length)
-    sel = top & (pos[:, 0] >= margin) & (pos[:, 0] <= box_length - margin)
-    if sel.sum() < 2:
-        return math.nan
-    slope = np.polyfit(pos[sel, 0], pos[sel, 1] + np.asarray(radius)[sel], 1)[0]
-    return float(np.degrees(np.arctan(slope)))
 
 
 def repose(run_file, *, ke_slide: float = KE_SLIDE, ke_stop: float = KE_STOP,

@@ -3,7 +3,7 @@
 import numpy as np
 import pytest
 
-from tiltpile.analysis.structure import bulk_window, fabric, packing_fraction
+from tiltpile.analysis.structure import bulk_window, fabric, packing_fraction, surface_tilt_deg
 
 
 def test_one_disk_covers_pi_r2_of_the_window():
@@ -74,3 +74,14 @@ def test_bulk_window_lies_inside_the_pile():
     assert y0 == pytest.approx(4.0) and y1 == pytest.approx(11.5 - 3.0)
     with pytest.raises(ValueError, match="no window"):
         bulk_window(pos, np.full(len(pos), 0.5), fixed, 30.0, margin=6.0)
+
+
+def test_surface_tilt_of_a_tilted_layer():
+    """A row of grains whose tops rise by 1 d over 10 d: tilt atan(0.1), towards x = L."""
+    x = np.arange(0.5, 30.0, 1.0)
+    pos = np.stack([x, 5.0 + 0.1 * x], axis=1)
+    r = np.full(len(x), 0.5)
+    tilt = surface_tilt_deg(pos, r, np.zeros(len(x), bool), 30.0)
+    assert tilt == pytest.approx(np.degrees(np.arctan(0.1)))
+    assert surface_tilt_deg(pos[:1], r[:1], np.zeros(1, bool), 30.0) != surface_tilt_deg(
+        pos[:1], r[:1], np.zeros(1, bool), 30.0)  # one grain: NaN

@@ -158,6 +158,9 @@ def test_numbers_equal_the_analysis_run_by_run(study):
                 win = bulk_window(pos, r.radius, r.fixed, r.box_length,
                                   margin=preparation.BULK_MARGIN)
                 assert pr["phi_start"][k] == packing_fraction(pos, r.radius, win)
+                from tiltpile.analysis.structure import surface_tilt_deg
+                assert pr["surface_tilt_start"][k] == pytest.approx(
+                    surface_tilt_deg(pos, r.radius, r.fixed, r.box_length), nan_ok=True)
             assert 0.5 < pr["phi_start"][k] < 0.91  # below the densest packing of disks
             assert 0.0 <= pr["fabric_start"][k] <= 2.0
             assert -90.0 < pr["fabric_major_start"][k] <= 90.0

@@ -10,6 +10,8 @@ anisotropy that a fresh one does not have.
 * :func:`packing_fraction` -- the fraction of a rectangle covered by disks, counted on a square
   grid of points (resolution ``spacing``; the error of a grid count of a smooth region falls
   like spacing^2, below 1e-3 at the default 0.02 d for our grains: tests/analysis/test_structure.py);
+* :func:`surface_tilt_deg` -- the free surface's tilt against the floor (a line through the tops
+  of the top-layer grains);
 * :func:`fabric` -- the fabric tensor F = <n n> of the active grain-grain contacts (n the unit
   branch vector; F has trace 1), its anisotropy a = 2 (l1 - l2) / (l1 + l2) = 2 (l1 - l2) and
   the direction of its major axis from the box's normal (the vertical at theta = 0).
@@ -18,6 +20,8 @@ Conventions as in :mod:`tiltpile.analysis.contacts` (box frame, d = 1, walls as 
 """
 
 from __future__ import annotations
+
+import math
 
 import numpy as np
 from numba import njit
@@ -111,3 +115,22 @@ def fabric(pair: np.ndarray, position: np.ndarray, active: np.ndarray,
     ang = ang - 180.0 if ang > 90.0 else (ang + 180.0 if ang <= -90.0 else ang)
     return {"tensor": t, "anisotropy": float(2.0 * (w[1] - w[0]) / (w[0] + w[1])),
             "major_deg": ang, "n_contacts": int(len(n))}
+
+
+SURFACE_MARGIN = 4.0  # [d] from each side wall: the surface fit leaves the wall regions out
+
+
+def surface_tilt_deg(position, radius, fixed, box_length: float,
+                     margin: float = SURFACE_MARGIN) -> float:
+    """The free surface's tilt against the box floor [deg], positive when it rises towards the
+    wall at x = L (where the pile flows at positive theta): the least-squares line through the
+    tops (y + r) of the top-layer grains (:func:`tiltpile.analysis.contacts.top_layer`) between
+    ``margin`` and L - ``margin``. The surface's slope to the horizontal at box angle theta is
+    theta minus this (the angle a repose angle is usually quoted as)."""
+    pos = np.asarray(position, dtype=float)
+    top = top_layer(pos, radius, fixed, box_length)
+    sel = top & (pos[:, 0] >= margin) & (pos[:, 0] <= box_length - margin)
+    if sel.sum() < 2:
+        return math.nan
+    slope = np.polyfit(pos[sel, 0], pos[sel, 1] + np.asarray(radius)[sel], 1)[0]
+    return float(np.degrees(np.arctan(slope)))

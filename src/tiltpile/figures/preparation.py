@@ -64,6 +64,8 @@ PER_RUN = {
     "fabric_start": "contact fabric anisotropy 2 (l1 - l2) of the bulk at frame 0",
     "fabric_major_start": "direction of the fabric's major axis from the vertical at frame 0 "
                           "(deg, positive towards the downhill wall x = L)",
+    "surface_tilt_start": "tilt of the free surface against the floor at frame 0 (deg, positive "
+                          "rising towards x = L): a history whose cycles flowed leaves it tilted",
 }
 
 # the packing fraction's window keeps 2 d (two grains) from the walls, the rough bottom and the
@@ -183,11 +185,12 @@ def load(data_dirs, labels=None, **analysis_params) -> tuple[list, list[str], li
 
 def start_structure(ens) -> pd.DataFrame:
     """Per run of ``ens`` (seeds order): packing fraction (``phi_start``) and contact fabric
-    (``fabric_start``, ``fabric_major_start``) of the pile at frame 0, after its history
+    (``fabric_start``, ``fabric_major_start``) and the tilt of its free surface
+    (``surface_tilt_start``) at frame 0, after its history
     (:mod:`tiltpile.analysis.structure`, bulk window 3 d inside the pile; fabric of the active
     contacts of bulk grains). NaN where the pile leaves no window."""
     from tiltpile.analysis.contacts import active_mask, bulk_mask
-    from tiltpile.analysis.structure import bulk_window, fabric, packing_fraction
+    from tiltpile.analysis.structure import bulk_window, fabric, packing_fraction, surface_tilt_deg
     from tiltpile.store import open_run
     rows = []
     for s in ens.seeds:
@@ -201,7 +204,8 @@ def start_structure(ens) -> pd.DataFrame:
             phi = np.nan
         fab = fabric(pair, pos, active_mask(force), select=bulk_mask(pos, radius, fixed, pair, length))
         rows.append({"phi_start": phi, "fabric_start": fab["anisotropy"],
-                     "fabric_major_start": fab["major_deg"]})
+                     "fabric_major_start": fab["major_deg"],
+                     "surface_tilt_start": surface_tilt_deg(pos, radius, fixed, length)})
     return pd.DataFrame(rows)
 
 
