@@ -39,3 +39,18 @@ def seed(text: str) -> int:
         return cfgmod.check_seed(int(text))
     except cfgmod.ConfigError as e:
         raise argparse.ArgumentTypeError(str(e)) from None
+
+
+def ensemble_files(directory, workers, what: str) -> list[Path]:
+    """The finished run files of an ensemble directory given on the command line, sorted; one-line
+    ConfigError for a directory that does not exist, ``workers`` below 1, or no run file
+    (``what``: what the command would do with them, for the message)."""
+    d = Path(directory)
+    if not d.is_dir():
+        raise ConfigError(f"{d}: no such ensemble directory")
+    if workers is not None and workers < 1:
+        raise ConfigError(f"--workers must be at least 1, got {workers}")
+    files = sorted(d.glob("run_*.h5"))
+    if not files:
+        raise ConfigError(f"{d}: no {what}")
+    return files

@@ -4,7 +4,7 @@ from __future__ import annotations
 
 from pathlib import Path
 
-from tiltpile.cli._common import ConfigError
+from tiltpile.cli._common import ConfigError, ensemble_files
 
 
 def add_parser(sub) -> None:
@@ -26,13 +26,7 @@ def run(args) -> int:
     from tiltpile.store import common_config
 
     d = Path(args.dir)
-    if not d.is_dir():
-        raise ConfigError(f"{d}: no such ensemble directory")
-    if args.workers is not None and args.workers < 1:
-        raise ConfigError(f"--workers must be at least 1, got {args.workers}")
-    files = sorted(d.glob("run_*.h5"))
-    if not files:
-        raise ConfigError(f"{d}: no run_*.h5 files to analyse")
+    files = ensemble_files(d, args.workers, "run_*.h5 files to analyse")
     manifest = read_manifest(d)
     common_config(files, manifest["config_hash"] if manifest else None)
     check_output(d / "observables", "cache directory", directory=True)

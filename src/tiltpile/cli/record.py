@@ -7,7 +7,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
-from tiltpile.cli._common import ConfigError
+from tiltpile.cli._common import ConfigError, ensemble_files
 
 
 def add_parser(sub) -> None:
@@ -36,13 +36,7 @@ def run(args) -> int:
     from tiltpile.store import common_config
 
     d = Path(args.dir)
-    if not d.is_dir():
-        raise ConfigError(f"{d}: no such ensemble directory")
-    if args.workers is not None and args.workers < 1:
-        raise ConfigError(f"--workers must be at least 1, got {args.workers}")
-    files = sorted(d.glob("run_*.h5"))
-    if not files:
-        raise ConfigError(f"{d}: no finished run files (run_*.h5) to record")
+    files = ensemble_files(d, args.workers, "finished run files (run_*.h5) to record")
     out = args.out
     if out.exists() and out.resolve() in (d.resolve(), (d / "observables").resolve()):
         raise ConfigError(f"--out {out} is the ensemble directory or its observables cache; "

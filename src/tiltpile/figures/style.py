@@ -116,13 +116,14 @@ def draw_gravity(ax, theta_deg: float, where=(0.9, 0.85), length: float = 0.12) 
             va="center", fontstyle="italic")
 
 
-def _jsonable(x):
+def jsonable(x):
+    """``x`` with numpy scalars and arrays as plain numbers and lists, NaN and inf as None (JSON)."""
     if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
+        return {str(k): jsonable(v) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
+        return [jsonable(v) for v in x]
     if isinstance(x, np.ndarray):
-        return [_jsonable(v) for v in x.tolist()]
+        return [jsonable(v) for v in x.tolist()]
     if isinstance(x, (np.bool_, bool)):
         return bool(x)
     if isinstance(x, (np.integer,)):
@@ -147,7 +148,7 @@ def save(fig, name: str, numbers: dict, figures_dir, meta: dict | None = None) -
         kw = {"metadata": {"CreationDate": None}} if ext == "pdf" else {"metadata": {"Software": None}}
         fig.savefig(tmp, format=ext, **kw)
         os.replace(tmp, paths[ext])
-    doc = {"figure": name, **_jsonable(meta or {}), "numbers": _jsonable(numbers)}
+    doc = {"figure": name, **jsonable(meta or {}), "numbers": jsonable(numbers)}
     tmp = paths["json"].with_name(f".{name}.tmp.json")
     tmp.write_text(json.dumps(doc, indent=1, sort_keys=False) + "\n")
     os.replace(tmp, paths["json"])

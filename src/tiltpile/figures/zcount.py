@@ -38,23 +38,6 @@ from . import style
 N_RESAMPLES = 9999
 
 
-def _jsonable(x):
-    if isinstance(x, dict):
-        return {str(k): _jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [_jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return _jsonable(x.tolist())
-    if isinstance(x, (bool, np.bool_)):
-        return bool(x)
-    if isinstance(x, np.integer):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        x = float(x)
-        return x if math.isfinite(x) else None
-    return x
-
-
 def _finite_mean(x) -> float:
     x = np.asarray(x, dtype=float)
     x = x[np.isfinite(x)]
@@ -315,7 +298,7 @@ def write_study(doc: dict, prefix) -> tuple[Path, Path]:
     tmp_json = prefix.with_name(f".{prefix.name}.json.{os.getpid()}.tmp")
     tmp_png = prefix.with_name(f".{prefix.name}.png.{os.getpid()}.tmp")
     try:
-        tmp_json.write_text(json.dumps(_jsonable(doc), indent=1) + "\n")
+        tmp_json.write_text(json.dumps(style.jsonable(doc), indent=1) + "\n")
         chart(doc["ensembles"], tmp_png)
         os.replace(tmp_png, out_png)
         os.replace(tmp_json, out_json)
