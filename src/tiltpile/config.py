@@ -438,10 +438,23 @@ def load(preset: str = "smoke", config_file: str | Path | None = None,
     """Preset, then config file, then ``key=value`` overrides; validated once at the end."""
     data = preset_dict(preset)
     if config_file is not None:
-        data = _merge(data, read_toml(config_file))
+        data = _merge_layer(data, read_toml(config_file))
     for text in overrides:
-        data = _merge(data, parse_override(text))
+        data = _merge_layer(data, parse_override(text))
     return from_dict(data)
+
+
+def _merge_layer(data: dict, layer: dict) -> dict:
+    """``layer`` over ``data``, where a history given by the layer (``protocol.pretilt_deg``, or
+    the shorthand ``cycles``/``theta_rev_deg``) replaces the one ``data`` gives in the other form:
+    a configuration file written with ``pretilt_deg = []`` is fresh on top of any preset."""
+    given = layer.get("protocol") if isinstance(layer, dict) else None
+    if isinstance(given, dict) and isinstance(data.get("protocol"), dict):
+        drop = (set(HISTORY_SHORTHAND) if "pretilt_deg" in given
+                else {"pretilt_deg"} if any(k in given for k in HISTORY_SHORTHAND) else set())
+        if drop:
+            data = dict(data, protocol={k: v for k, v in data["protocol"].items() if k not in drop})
+    return _merge(data, layer)
 
 
 def from_json(text: str) -> Config:

@@ -100,8 +100,8 @@ def test_every_figure_computes_the_same_numbers_from_records(both, module):
     kw = {"delta_bootstrap": 19} if module is fig5 else {}    # fewer resamples: seconds, not a minute
     n_runs, d_runs = module.compute(runs, **kw)
     n_recs, d_recs = module.compute(recs, **kw)
-    assert json.dumps(style._jsonable(n_recs), sort_keys=True) == \
-        json.dumps(style._jsonable(n_runs), sort_keys=True)
+    assert json.dumps(style.jsonable(n_recs), sort_keys=True) == \
+        json.dumps(style.jsonable(n_runs), sort_keys=True)
     _same_tree(d_recs, d_runs, module.__name__)    # the pile pictures included
 
 
@@ -175,9 +175,9 @@ def test_notebooks_run_from_records(records_only, both, tmp_path):
                                     "figures_dir": str(tmp_path)})
     doc = json.loads((tmp_path / "fig3_clusters_failure.json").read_text())
     numbers, _ = fig3.compute(runs)
-    assert doc["numbers"] == json.loads(json.dumps(style._jsonable(numbers)))
+    assert doc["numbers"] == json.loads(json.dumps(style.jsonable(numbers)))
     assert {k: v for k, v in doc.items() if k not in ("figure", "numbers")} == \
-        json.loads(json.dumps(style._jsonable(runs.meta)))
+        json.loads(json.dumps(style.jsonable(runs.meta)))
 
 
 # ---------------------------------------------------------------------------------------------

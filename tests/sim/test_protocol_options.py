@@ -113,8 +113,6 @@ def test_bad_history_is_refused_naming_the_field_and_nothing_is_written(tmp_path
     (["protocol.cycles=1.5", "protocol.theta_rev_deg=16.0"], "protocol.cycles"),
     (["protocol.cycles=2", "protocol.theta_rev_deg=95.0"], "protocol.theta_rev_deg"),
     (["protocol.cycles=2", "protocol.theta_rev_deg=nan"], "protocol.theta_rev_deg"),
-    (["protocol.cycles=2", "protocol.theta_rev_deg=16.0", "protocol.pretilt_deg=[5.0, 0.0]"],
-     "protocol.pretilt_deg and protocol.cycles"),
     (["protocol.pretilt_per_step_deg=0.02"], "protocol.pretilt_per_step_deg"),
     (["protocol.cycles=2", "protocol.theta_rev_deg=16.0", "protocol.pretilt_per_step_deg=-1.0"],
      "protocol.pretilt_per_step_deg"),

@@ -18,6 +18,9 @@ def test_paper_preset_matches_the_paper():
     assert cfg.scene.n == 4000 and cfg.scene.box_length == 120.0
     assert cfg.protocol.tilt_per_step_deg == 0.001 and cfg.protocol.frame_every == 50
     assert cfg.protocol.theta_max_deg == 30.0 and cfg.scene.polydispersity == 0.2
+    # Deboeuf et al.'s history: to 16 deg, two full cycles +-16 deg, back to 0, at the ramp's rate
+    assert cfg.protocol.pretilt_deg == (16.0, -16.0, 16.0, -16.0, 16.0, 0.0)
+    assert cfg.protocol.pretilt_per_step_deg == 0.0
 
 
 def test_paper_fresh_is_the_paper_preset_without_its_history():
@@ -88,3 +91,19 @@ def test_cli_reference_lists_every_configuration_key():
         assert listed, f"docs/cli.md lists no {section} keys"
         names = {n.strip() for n in listed.group(1).split(",")}
         assert names == {f.name for f in dataclasses.fields(cls)}, section
+
+
+def test_a_history_given_later_replaces_the_presets_in_either_form(tmp_path):
+    """Later layers win, whichever form of the history they use: legs written out replace the
+    preset's shorthand (a run file's TOML with pretilt_deg = [] is fresh on any preset), and a
+    shorthand replaces legs given before it; both forms in one layer are refused."""
+    f = tmp_path / "c.toml"
+    f.write_text("[protocol]\npretilt_deg = []\n")
+    assert config.load("paper", f).hash() == config.load("paper-fresh").hash()
+    assert config.load("paper", overrides=["protocol.pretilt_deg=[5.0,0.0]"]).protocol.pretilt_deg == (5.0, 0.0)
+    f.write_text("[protocol]\npretilt_deg = [5.0, 0.0]\n")
+    cfg = config.load("default", f, ["protocol.cycles=1", "protocol.theta_rev_deg=3.0"])
+    assert cfg.protocol.pretilt_deg == (3.0, -3.0, 3.0, 0.0)
+    f.write_text("[protocol]\npretilt_deg = [5.0, 0.0]\ncycles = 1\ntheta_rev_deg = 3.0\n")
+    with pytest.raises(ConfigError, match="both give a history"):
+        config.load("default", f)
