@@ -57,6 +57,7 @@ NB ?=
 RUNS_smoke := 4
 RUNS_default := 6
 RUNS_paper := 50
+RUNS_paper-fresh := 50
 RUNS ?= $(RUNS_$(PRESET))
 
 BASE_DATA := data/$(PRESET)

@@ -550,14 +550,14 @@ CLAIMS: list[Claim] = CLAIMS_123 + CLAIMS_456
 # ------------------------------------------------------------------------------------------------
 # the same headline numbers at every scale we have run
 
-SCALES = (("smoke", "smoke"), ("default", ""), ("paper", "paper"))
+SCALES = (("smoke", "smoke"), ("default", ""), ("paper", "paper"), ("paper-fresh", "paper-fresh"))
 
 
 def scale_dirs(figures_dir) -> dict[str, Path]:
     """{scale: figures directory}: the default scale writes ``figures/``, the others
     ``figures/<scale>/``; from any of them the others are found."""
     d = Path(figures_dir)
-    root = d.parent if d.name in ("smoke", "paper") else d
+    root = d.parent if d.name in {sub for _, sub in SCALES if sub} else d
     return {name: (root / sub if sub else root) for name, sub in SCALES}
 
 

@@ -138,7 +138,7 @@ def test_scales_table_says_not_yet_run(tmp_path):
     text = report.write_report(tmp_path, tmp_path / "R.md").read_text()
     assert "## The same numbers at every scale" in text
     row = next(line for line in text.splitlines() if line.startswith("| first 2% onset"))
-    assert row.count("not yet run") == 2 and "9.7 [8.1, 10.9]" in row
+    assert row.count("not yet run") == 3 and "9.7 [8.1, 10.9]" in row
     assert "## How each claim is tested" in text
     assert all(c.key in report.RULES for c in report.CLAIMS)
 

@@ -24,7 +24,7 @@ import numpy as np
 from tiltpile import config
 from tiltpile.sim import protocol
 
-PAPER_HASH = "a2a1ff442489581b9729b5f8762364db20e874617725d57ef624e98699008f41"
+PAPER_HASH = "c22bab2311c253f67c59980e57c69b21f88d4641f43fc6483d0ad3446febec45"
 PREFIX_STEPS = 600
 PREFIX_DIGEST = "d9d2f3bcb083e73a726c22f2ab84adb4c4e3a81fd521ea8987ea74aac725f1c7"
 PREFIX_SWEEPS = 154742
