@@ -217,9 +217,8 @@ def _z_mean(n: dict):
     ok = _overlaps(lo, hi, 3.45, 3.55)
     note = "" if ok or not math.isfinite(z) else (
         "we count force-bearing contacts (f_n > 0) of bulk grains without rattlers (top and bottom "
-        "layers removed); the paper does not say which contacts its <z> counts. Counting geometric "
-        "contacts (gap <= 1e-3 d) gives ~3.36 on the same piles, a Hookean DEM counting overlaps "
-        "3.32-3.34 (DESIGN.md). Our piles are also deposited differently (loose random fill, "
+        "layers removed); the paper does not say which contacts its <z> counts. A Hookean DEM "
+        "counting overlaps gives 3.32-3.34 on the same piles (DESIGN.md). Our piles are also deposited differently (loose random fill, "
         "settling under gravity at mu = 0.5), which sets z.")
     return (f"{_ci(n, 'z_quiet_run_mean', '.3f')} (quiet frames, bulk without rattlers)",
             _verdict(ok, math.isfinite(lo)), note)

@@ -455,9 +455,9 @@ def plot(data: dict, numbers: dict):
     onset_c, slide_c = style.OKABE_ITO["blue"], style.COLORS["avalanche"]
     below_c, below = style.OKABE_ITO["purple"], numbers.get("below_deg")
     below = np.nan if below is None else float(below)
-    fig, axs = style.figure(2, 4, width=style.DOUBLE_COLUMN_IN, height=5.2,
-                            gridspec_kw=dict(wspace=0.42, hspace=0.75, left=0.06, right=0.99,
-                                             bottom=0.11, top=0.86))
+    fig, axs = style.figure(2, 4, width=style.DOUBLE_COLUMN_IN, height=5.6 + 0.1 * nens,
+                            gridspec_kw=dict(wspace=0.42, hspace=0.8, left=0.06, right=0.99,
+                                             bottom=0.1 + 0.018 * nens, top=0.87))
     a, b, c, d = axs[0]
     e_ax, f_ax, g_ax, h_ax = axs[1]
     x = np.arange(nens, dtype=float)
@@ -535,18 +535,19 @@ def plot(data: dict, numbers: dict):
     def fmt(v, spec):
         return format(v, spec) if v is not None and np.isfinite(v) else "n/a"
 
-    bm = "; ".join(
-        f"{lab}: Ashman D = {fmt(ens[lab]['lost_bimodality']['ashman_d'], '.1f')}, valley "
-        f"{fmt(ens[lab]['lost_bimodality']['valley_depth'], '.2f')}, no contact lost in "
-        f"{fmt(100 * ens[lab]['lost_zero_fraction'], '.0f')}% of frames" for lab in labels)
+    # one line per ensemble, so that the footer never outgrows the figure
     ref_ke = numbers.get("slide_ke_reference")
-    sl = "; ".join(f"{lab} {ens[lab]['n_runs_with_slide_ref_ke']}/{ens[lab]['n_runs']} slid, "
-                   f"{fmt(ens[lab]['n_precursors_ref_ke_mean'], '.1f')} onsets before"
-                   for lab in labels if "n_runs_with_slide_ref_ke" in ens[lab])
-    if ref_ke is not None and np.isfinite(ref_ke) and sl:
-        bm += ("\nslide KE threshold (Fig. 2a): "
-               + ", ".join(f"{ens[lab]['slide_ke']:.1e}" for lab in labels)
-               + f"; at the reference's {ref_ke:.1e}: " + sl)
-    fig.text(0.5, 0.005, "Fig. 2b two populations -- " + bm, ha="center", va="bottom",
-             fontsize=5.5)
+    show_ref = ref_ke is not None and np.isfinite(ref_ke)
+    lines = []
+    for lab in labels:
+        e = ens[lab]
+        line = (f"{lab}: Fig. 2b Ashman D = {fmt(e['lost_bimodality']['ashman_d'], '.1f')}, valley "
+                f"{fmt(e['lost_bimodality']['valley_depth'], '.2f')}, no contact lost in "
+                f"{fmt(100 * e['lost_zero_fraction'], '.0f')}% of frames; slide KE threshold "
+                f"(Fig. 2a) {e['slide_ke']:.1e}")
+        if show_ref and "n_runs_with_slide_ref_ke" in e:
+            line += (f"; at the reference's {ref_ke:.1e}: {e['n_runs_with_slide_ref_ke']}/"
+                     f"{e['n_runs']} slid, {fmt(e['n_precursors_ref_ke_mean'], '.1f')} onsets before")
+        lines.append(line)
+    fig.text(0.5, 0.005, "\n".join(lines), ha="center", va="bottom", fontsize=5.5)
     return fig
