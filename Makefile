@@ -194,12 +194,12 @@ clean-data:
 # (the first history is the reference, normally fresh piles) into
 # PREP_FIGURES/preparation.{png,pdf,json}. PREP_DIRS="dir ..." instead names existing ensembles
 # and runs nothing. `make zcount` charts <z> by counting rule on the same ensembles
-# (`tiltpile zcount`, PREP_FIGURES/zcount.{png,json}). About 3 hours on two cores for the four
-# histories (a cycled run costs about twice a fresh one).
+# (`tiltpile zcount`, PREP_FIGURES/zcount.{png,json}). About 3.5 hours on two cores for the five
+# histories (a cycled run costs 2.6-6 times the sweeps of a fresh one).
 PREP_ROOT ?= data/preparation
 PREP_RUNS ?= 6
 PREP_WORKERS ?=
-PREP_HISTORIES ?= fresh cyc10 cyc16 cyc18
+PREP_HISTORIES ?= fresh cyc10 cyc16 cyc18 cyc16r10
 # Deboeuf et al.'s history: 0 -> theta_rev, two full cycles +-theta_rev, back to 0
 PREP_SET_fresh :=
 PREP_SET_cyc10 := protocol.cycles=2 protocol.theta_rev_deg=10.0

@@ -75,6 +75,10 @@ def test_history_labels():
     assert preparation.history_label(deboeuf_history(2, 16.0)) == "±16° 2 cycles"
     assert preparation.history_label(deboeuf_history(1, 10.0)) == "±10° 1 cycle"
     assert preparation.history_label(deboeuf_history(0, 10.0)) == "10° once"
+    # a history at its own rate says so
+    assert preparation.rate_suffix({"protocol": {"tilt_per_step_deg": 0.002,
+                                                 "pretilt_per_step_deg": 0.02}}) == " at 10x rate"
+    assert preparation.rate_suffix({"protocol": {"tilt_per_step_deg": 0.002}}) == ""
 
 
 # ---------------------------------------------------------------------------------------------

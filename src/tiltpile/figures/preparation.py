@@ -166,17 +166,27 @@ def check_inputs(data_dirs, labels=None) -> list[str]:
 def load(data_dirs, labels=None, **analysis_params) -> tuple[list, list[str], list[list[float]]]:
     """The ensembles of ``data_dirs`` (:func:`tiltpile.figures.data.load_ensemble`, with
     ``analysis_params``), their labels and preparation histories, after :func:`check_inputs`.
-    Labels not given are derived from the run files' preparation (:func:`history_label`; the
-    directory name is appended where two would be equal)."""
+    Labels not given are derived from the run files' preparation (:func:`history_label`, with
+    the history's rate when it has its own, :func:`rate_suffix`; the directory name is appended
+    where two would be equal)."""
     from .data import load_ensemble
     labels = check_inputs(data_dirs, labels)
     hist = [preparation_history(d) for d in data_dirs]
+    ens = [load_ensemble(d, None, **analysis_params) for d in data_dirs]
     if not labels:
-        derived = [history_label(h) for h in hist]
+        derived = [history_label(h) + (rate_suffix(e.config) if h else "")
+                   for h, e in zip(hist, ens)]
         labels = [f"{x} ({Path(d).name})" if derived.count(x) > 1 else x
                   for x, d in zip(derived, data_dirs)]
-    ens = [load_ensemble(d, None, **analysis_params) for d in data_dirs]
     return ens, labels, hist
+
+
+def rate_suffix(config: dict) -> str:
+    """" at Nx rate" for a configuration whose history legs tilt at their own rate
+    (``protocol.pretilt_per_step_deg``, N times the ramp's), "" otherwise."""
+    proto = config.get("protocol", {})
+    own = float(proto.get("pretilt_per_step_deg", 0.0) or 0.0)
+    return f" at {own / float(proto['tilt_per_step_deg']):g}x rate" if own > 0 else ""
 
 
 # ----------------------------------------------------------------------------------------------
