@@ -52,6 +52,8 @@ import zlib
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import math
+
 import numpy as np
 import pandas as pd
 
@@ -110,18 +112,21 @@ def _table_members(prefix: str, df: pd.DataFrame) -> tuple[dict, list]:
     return members, dtypes
 
 
-def jsonable(x):
-    """numpy scalars and arrays as plain Python numbers and lists (for ``meta``)."""
+def jsonable(x, nan_as_none: bool = False):
+    """numpy scalars and arrays as plain Python numbers and lists (for ``meta``); with
+    ``nan_as_none``, NaN and inf as None (strict JSON, as the figures write it)."""
     if isinstance(x, dict):
-        return {str(k): jsonable(v) for k, v in x.items()}
+        return {str(k): jsonable(v, nan_as_none) for k, v in x.items()}
     if isinstance(x, (list, tuple)):
-        return [jsonable(v) for v in x]
+        return [jsonable(v, nan_as_none) for v in x]
     if isinstance(x, np.ndarray):
-        return jsonable(x.tolist())
+        return jsonable(x.tolist(), nan_as_none)
     if isinstance(x, np.generic):
-        return x.item()
+        x = x.item()
     if isinstance(x, bytes):
         return x.decode()
+    if nan_as_none and isinstance(x, float) and not math.isfinite(x):
+        return None
     return x
 
 

@@ -15,6 +15,8 @@ from pathlib import Path
 
 import numpy as np
 
+from tiltpile.record import jsonable as _record_jsonable
+
 OKABE_ITO = {
     "black": "#000000", "orange": "#E69F00", "skyblue": "#56B4E9", "green": "#009E73",
     "yellow": "#F0E442", "blue": "#0072B2", "vermillion": "#D55E00", "purple": "#CC79A7",
@@ -118,20 +120,7 @@ def draw_gravity(ax, theta_deg: float, where=(0.9, 0.85), length: float = 0.12) 
 
 def jsonable(x):
     """``x`` with numpy scalars and arrays as plain numbers and lists, NaN and inf as None (JSON)."""
-    if isinstance(x, dict):
-        return {str(k): jsonable(v) for k, v in x.items()}
-    if isinstance(x, (list, tuple)):
-        return [jsonable(v) for v in x]
-    if isinstance(x, np.ndarray):
-        return [jsonable(v) for v in x.tolist()]
-    if isinstance(x, (np.bool_, bool)):
-        return bool(x)
-    if isinstance(x, (np.integer,)):
-        return int(x)
-    if isinstance(x, (float, np.floating)):
-        x = float(x)
-        return x if math.isfinite(x) else None
-    return x
+    return _record_jsonable(x, nan_as_none=True)
 
 
 def save(fig, name: str, numbers: dict, figures_dir, meta: dict | None = None) -> dict[str, Path]:
