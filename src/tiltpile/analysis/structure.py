@@ -9,7 +9,7 @@ anisotropy that a fresh one does not have.
   of the rough bottom and the lowest point of the free surface;
 * :func:`packing_fraction` -- the fraction of a rectangle covered by disks, counted on a square
   grid of points (resolution ``spacing``; the error of a grid count of a smooth region falls
-  like spacing^2, below 1e-3 at the default 0.02 d for our grains: tests/analysis/test_structure.py);
+  like spacing^2, below 1e-3 at the default 0.02 d for our grains: tests/analysis/test_analysis_structure.py);
 * :func:`surface_tilt_deg` -- the free surface's tilt against the floor (a line through the tops
   of the top-layer grains);
 * :func:`fabric` -- the fabric tensor F = <n n> of the active grain-grain contacts (n the unit
