@@ -26,7 +26,7 @@ Table columns are stored with the smallest integer type that holds their values 
 checked lossless) and read back with their original dtype (``meta["columns"]``); every other
 column as it is. A record's tables are those the writer gave, bit for bit.
 
-``meta`` (JSON): format, format_version, tiltpile_version (of the writer), analysis_version and
+``meta`` (JSON): format, format_version, tiltpile_version (of the writer), analysis_code and
 analysis_params (of the tables), seed, config (dict), config_hash, n_grains, n_frames,
 box_length, cost (``store.Run.cost``), end_reason, end_theta_deg, deposition, health, source
 (run file name, size, its ``attrs_sha256`` and ``frames_sha256``: ``store.Run.frames_digest``),
@@ -67,7 +67,7 @@ _SMALL_INTS = (np.int8, np.int16, np.int32, np.int64)
 
 
 class RecordError(ValueError):
-    """A record that cannot be used: damaged, truncated, of another format or analysis version,
+    """A record that cannot be used: damaged, truncated, of another format or table code,
     or lacking what was asked of it. The message is one line naming the file."""
 
 

@@ -139,6 +139,15 @@ def test_compute_and_load_are_cached_and_incremental(tiny_run, pile_factory, con
     s3 = compute_observables(d, workers=1, progress=False)
     assert s3["status"].tolist() == ["computed", "computed"]
     assert compute_observables(d, workers=1, progress=False)["status"].tolist() == ["cached"] * 2
+    # a cache of other table code (the computation changed) is stale
+    assert ob._read_meta(d / "observables" / "run_0007.npz")["code"] == ob.table_code()
+    real = ob.table_code
+    try:
+        ob.table_code = lambda: "0" * 16
+        assert compute_observables(d, workers=1, progress=False)["status"].tolist() == ["computed"] * 2
+    finally:
+        ob.table_code = real
+    assert compute_observables(d, workers=1, progress=False)["status"].tolist() == ["computed"] * 2
     # other analysis parameters are a different cache
     assert compute_observables(d, workers=1, progress=False, cutoff=0.2)["status"].tolist() == ["computed"] * 2
     fr, cl = load_observables(d, compute_missing=False, cutoff=0.2)

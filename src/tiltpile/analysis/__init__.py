@@ -62,8 +62,8 @@ from .contacts import (
     rattler_mask,
     top_layer,
 )
+from .tables import table_code  # noqa: F401
 from .observables import (
-    ANALYSIS_VERSION,
     CLUSTER_COLUMNS,
     DEFAULT_PARAMS,
     FRAME_COLUMNS,

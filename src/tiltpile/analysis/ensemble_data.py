@@ -20,7 +20,8 @@ import numpy as np
 import pandas as pd
 
 from tiltpile import __version__
-from tiltpile.analysis.observables import ANALYSIS_VERSION, load_observables, run_files, table_params
+from tiltpile.analysis.observables import load_observables, run_files, table_params
+from tiltpile.analysis.tables import table_code
 
 
 @dataclass
@@ -122,8 +123,9 @@ def load_records(data_dir, preset: str | None = None, **analysis_params) -> Ense
     columns the records leave out, with ``records`` set (pile pictures:
     :func:`tiltpile.figures.data.snapshot`).
 
-    A record holds the tables of one analysis version at the default parameters: another
-    ANALYSIS_VERSION, or ``analysis_params`` that change the tables (cutoff, lost_gap, ...), are
+    A record holds the tables of one table code at the default parameters: records of other
+    code (:func:`tiltpile.analysis.tables.table_code`), or ``analysis_params`` that change the
+    tables (cutoff, lost_gap, ...), are
     refused (``tiltpile.record.RecordError``, one line); so are damaged records (every member's
     checksum is checked) and records of other format versions. Records of different
     configurations are refused (ValueError), a directory without records is FileNotFoundError.
@@ -140,9 +142,9 @@ def load_records(data_dir, preset: str | None = None, **analysis_params) -> Ense
     for path in paths:
         rec = read_record(path)    # every member, so that every checksum is checked
         m = rec.meta
-        if m.get("analysis_version") != ANALYSIS_VERSION:
-            raise RecordError(f"{path}: a record of analysis version {m.get('analysis_version')}, "
-                              f"this tiltpile computes version {ANALYSIS_VERSION}; rewrite the "
+        if m.get("analysis_code") != table_code():
+            raise RecordError(f"{path}: a record of table code {m.get('analysis_code')}, this "
+                              f"tiltpile computes the tables with code {table_code()}; rewrite the "
                               "records from the run files (`make records`, `tiltpile record`)")
         if not _same(m.get("analysis_params"), wanted):
             held = m.get("analysis_params") or {}

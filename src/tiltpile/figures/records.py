@@ -8,7 +8,8 @@ A record holds, for one finished run:
   read: all but ``DROPPED_CLUSTER_COLUMNS`` (the clusters' position, gyration radii and
   long-axis angle in the box frame: read by no figure, study or report, and 60% of the bytes);
 * the run's configuration and hash, seed, cost, how it ended, its deposition, preparation and
-  health records, the writer's tiltpile version and the analysis version;
+  health records, the writer's tiltpile version and the table code
+  (:func:`tiltpile.analysis.tables.table_code`);
 * ``source``: the run file's name, size, attribute digest (``attrs_sha256``) and frames digest
   (``store.Run.frames_digest``), so that the record can be traced to its run file;
 * the frames of the pile pictures (Figs. 1b and 3): for every run, the frames the figure modules
@@ -23,7 +24,7 @@ four picture frames 0.17 MB), 0.15 MB for a smoke run; estimated for a 4000-grai
 ~500 frames: ~3 MB (~100 000 cluster rows, pictures ~0.7 MB). With every cluster column a record
 would be ~2x larger.
 
-A record is up to date when it was written by this format version, analysis version and
+A record is up to date when it was written by this format version, table code and
 ``WRITER`` choice, from the same run file (same name, size and ``attrs_sha256``; for files
 without it, the same mtime); ``write_records`` rewrites only the others.
 """
@@ -36,8 +37,9 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from tiltpile.analysis.observables import (ANALYSIS_VERSION, compute_observables,
-                                           load_run_observables, run_files, table_params)
+from tiltpile.analysis.observables import (compute_observables, load_run_observables, run_files,
+                                           table_params)
+from tiltpile.analysis.tables import table_code
 from tiltpile.record import (FORMAT_VERSION, RecordError, read_meta, record_files, record_name,
                              write_record)
 
@@ -72,7 +74,7 @@ def _source(run, path: Path) -> dict:
 
 def _wanted_meta() -> dict:
     """What an up-to-date record's meta says besides its source."""
-    return {"format_version": FORMAT_VERSION, "analysis_version": ANALYSIS_VERSION,
+    return {"format_version": FORMAT_VERSION, "analysis_code": table_code(),
             "analysis_params": table_params(), "writer": WRITER}
 
 
