@@ -99,10 +99,23 @@ endif
 
 NOTEBOOKS := $(wildcard notebooks/fig*.ipynb)
 FIG_JSON := $(patsubst notebooks/%.ipynb,$(FIGURES)/%.json,$(NOTEBOOKS))
-# what every figure reads besides its own notebook and module
-FIG_COMMON := $(wildcard src/tiltpile/figures/style.py src/tiltpile/figures/data.py \
-                         src/tiltpile/figures/__init__.py src/tiltpile/analysis/*.py \
-                         src/tiltpile/record.py)
+# The code a figure's JSON depends on. FIG_COMMON: what every figure notebook imports (data and
+# style, the analysis but for the two studies' own modules, the run-file and record readers, the
+# package's version); FIG_USES_<module>: the other modules of src/tiltpile its figure module
+# imports, directly or not. A figure module
+# imports no other figure's module (shared helpers live in data.py, style.py, snapshot.py), save
+# the preparation study, which is Fig. 2's computation on several ensembles.
+# tests/workflow/test_build_graph.py checks these lists against the imports.
+ANALYSIS := $(wildcard src/tiltpile/analysis/*.py)
+FIG_COMMON := $(wildcard src/tiltpile/__init__.py src/tiltpile/figures/__init__.py \
+                         src/tiltpile/figures/style.py src/tiltpile/figures/data.py \
+                         src/tiltpile/record.py src/tiltpile/store.py) \
+              $(filter-out %/structure.py %/zcount.py,$(ANALYSIS))
+FIG_USES_fig1 := src/tiltpile/figures/snapshot.py
+FIG_USES_fig3 := src/tiltpile/figures/snapshot.py
+FIG_USES_preparation := src/tiltpile/figures/fig2.py src/tiltpile/config.py \
+                        src/tiltpile/analysis/structure.py
+fig_module = $(firstword $(subst _, ,$(1)))
 ENSEMBLE_ARGS := $(if $(SCHEDULER),--scheduler $(SCHEDULER)) $(if $(WORKERS),--workers $(WORKERS)) \
                  $(foreach kv,$(SET),--set '$(kv)')
 # notebooks/run_diagnostics.ipynb, if present: executed on the first run of the ensemble
@@ -156,8 +169,9 @@ $(PARAMETERS): FORCE
 	@echo 'data_dir=$(FIG_DATA) preset=$(PRESET) $(NB)' > $@.tmp; $(call update_if_changed,$@)
 
 # one target per figure: notebooks/figN_<name>.ipynb with src/tiltpile/figures/figN.py
-$(FIGURES)/%.json: notebooks/%.ipynb src/tiltpile/figures/$$(firstword $$(subst _, ,$$*)).py \
-                   $(FIG_COMMON) $(FIG_INPUT) $(PARAMETERS) | $(STAMP)
+$(FIG_JSON): $(FIGURES)/%.json: notebooks/%.ipynb src/tiltpile/figures/$$(call fig_module,$$*).py \
+                   $$(FIG_USES_$$(call fig_module,$$*)) $(FIG_COMMON) $(FIG_INPUT) $(PARAMETERS) \
+                   | $(STAMP)
 	@mkdir -p $(EXECUTED) $(FIGURES)
 	@echo "papermill $< -> $(EXECUTED)/$*.ipynb"
 	@$(PY) -m papermill --kernel tiltpile --cwd $(CURDIR) --no-progress-bar $< $(EXECUTED)/$*.ipynb \
@@ -166,7 +180,14 @@ $(FIGURES)/%.json: notebooks/%.ipynb src/tiltpile/figures/$$(firstword $$(subst 
 	@test -f $@ || { echo "$< did not write $@"; exit 1; }
 	@touch $@
 
-$(REPORT): $(FIG_JSON) src/tiltpile/report.py | $(STAMP)
+# The report reads (tiltpile.report.inputs) the figures' JSON, Fig. 2's JSON of every scale (its
+# table of scales) and the preparation and <z> studies of the default scale's directory.
+REPORT_ROOT := $(if $(filter smoke paper paper-fresh,$(notdir $(FIGURES))),$(patsubst %/,%,$(dir $(FIGURES))),$(FIGURES))
+REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparation.json \
+                  $(foreach s,/ /smoke/ /paper/ /paper-fresh/,$(REPORT_ROOT)$(s)fig2_avalanche_criterion.json) \
+                  $(REPORT_ROOT)/preparation.json $(REPORT_ROOT)/zcount.json)
+$(REPORT): $(REPORT_READS) src/tiltpile/report.py src/tiltpile/cli/report.py src/tiltpile/__init__.py \
+           | $(STAMP)
 	$(PY) -m tiltpile report --figures $(FIGURES) --out $@
 
 $(EXECUTED)/diagnostics/.executed: notebooks/run_diagnostics.ipynb $(DATA)/.runs | $(STAMP)
@@ -211,12 +232,18 @@ PREP_GIVEN := $(PREP_DIRS)
 PREP_DIRS ?= $(foreach h,$(PREP_HISTORIES),$(PREP_ROOT)/$(h))
 PREP_LABELS ?=
 PREP_FIGURES ?= figures
+PREP_EXECUTED := notebooks/executed/preparation
 prep_comma := ,
 prep_empty :=
 prep_space := $(prep_empty) $(prep_empty)
 PREP_PARAMS = {"data_dirs": [$(subst $(prep_space),$(prep_comma),$(foreach d,$(PREP_DIRS),"$(d)"))], \
                "labels": [$(if $(strip $(PREP_LABELS)),"$(subst |,"$(prep_comma)",$(PREP_LABELS))")], \
                "figures_dir": "$(PREP_FIGURES)"}
+# what `tiltpile zcount` computes with: its study module and what that imports, and the command
+ZCOUNT_CODE := $(wildcard src/tiltpile/__init__.py src/tiltpile/figures/__init__.py \
+                          src/tiltpile/figures/style.py src/tiltpile/figures/zcount.py \
+                          src/tiltpile/record.py src/tiltpile/store.py src/tiltpile/cli/zcount.py) \
+               $(filter-out %/ensemble_data.py %/structure.py,$(ANALYSIS))
 .PHONY: preparation preparation-runs zcount
 preparation-runs: | $(STAMP)
 ifeq ($(strip $(PREP_GIVEN)),)
@@ -229,14 +256,35 @@ ifeq ($(strip $(PREP_GIVEN)),)
 	            $(if $(PREP_WORKERS),--workers $(PREP_WORKERS)); } || exit 1;)
 endif
 
-preparation: preparation-runs | $(STAMP)
-	@mkdir -p notebooks/executed $(PREP_FIGURES)
-	@echo "papermill notebooks/preparation.ipynb -> notebooks/executed/preparation.ipynb"
-	@$(PY) -m papermill --kernel tiltpile --cwd $(CURDIR) --no-progress-bar notebooks/preparation.ipynb \
-	  notebooks/executed/preparation.ipynb -y '$(PREP_PARAMS)' \
-	  || { echo "papermill failed: notebooks/preparation.ipynb (output notebook: notebooks/executed/preparation.ipynb)"; exit 1; }
-	@test -f $(PREP_FIGURES)/preparation.json || { echo "notebooks/preparation.ipynb did not write $(PREP_FIGURES)/preparation.json"; exit 1; }
+# The study's inputs, as a file its targets depend on: every run file and repose.json of
+# PREP_DIRS (name, size, time), rewritten only when one changes; and its notebook parameters.
+$(PREP_EXECUTED)/.inputs: FORCE | preparation-runs
+	@mkdir -p $(@D)
+	@for d in $(PREP_DIRS); do stat -L -c '%n %s %Y' $$d/run_*.h5 $$(ls $$d/repose.json 2> /dev/null) \
+	  2> /dev/null; done > $@.tmp; $(call update_if_changed,$@)
+$(PREP_EXECUTED)/.parameters: FORCE
+	@mkdir -p $(@D)
+	@echo '$(PREP_PARAMS)' > $@.tmp; $(call update_if_changed,$@)
 
-zcount: preparation-runs | $(STAMP)
+# The study and the <z> chart are rebuilt when their code, notebook, parameters or inputs change
+# (or their output is missing); .executed and .zcount stand for PREP_FIGURES/preparation.json and
+# zcount.json, which the report reads without building them.
+preparation: $(PREP_EXECUTED)/.executed
+$(PREP_EXECUTED)/.executed: notebooks/preparation.ipynb src/tiltpile/figures/preparation.py \
+                            $(FIG_USES_preparation) $(FIG_COMMON) $(PREP_EXECUTED)/.inputs \
+                            $(PREP_EXECUTED)/.parameters \
+                            $(if $(wildcard $(PREP_FIGURES)/preparation.json),,FORCE) | $(STAMP)
+	@mkdir -p $(PREP_FIGURES)
+	@echo "papermill notebooks/preparation.ipynb -> $(PREP_EXECUTED)/preparation.ipynb"
+	@$(PY) -m papermill --kernel tiltpile --cwd $(CURDIR) --no-progress-bar notebooks/preparation.ipynb \
+	  $(PREP_EXECUTED)/preparation.ipynb -y '$(PREP_PARAMS)' \
+	  || { echo "papermill failed: notebooks/preparation.ipynb (output notebook: $(PREP_EXECUTED)/preparation.ipynb)"; exit 1; }
+	@test -f $(PREP_FIGURES)/preparation.json || { echo "notebooks/preparation.ipynb did not write $(PREP_FIGURES)/preparation.json"; exit 1; }
+	@touch $@
+
+zcount: $(PREP_EXECUTED)/.zcount
+$(PREP_EXECUTED)/.zcount: $(ZCOUNT_CODE) $(PREP_EXECUTED)/.inputs \
+                          $(if $(wildcard $(PREP_FIGURES)/zcount.json),,FORCE) | $(STAMP)
 	@mkdir -p $(PREP_FIGURES)
 	$(PY) -m tiltpile zcount $(PREP_DIRS) --out $(PREP_FIGURES)/zcount $(if $(PREP_WORKERS),--workers $(PREP_WORKERS))
+	@touch $@

@@ -6,6 +6,7 @@ writes a Markdown table: the paper's value, ours, the preset and the number of r
 and a verdict (agrees / disagrees / inconclusive), followed by notes on every disagreement, the
 headline numbers of Fig. 2 at each scale that has been run (smoke, default, paper; "not yet run"
 otherwise), and for every claim the paper's sentence and the rule that judges it.
+:func:`inputs` lists every file it reads.
 
 Verdicts are computed, not written by hand: each :class:`Claim` has a ``judge`` that looks at the
 numbers and returns (our value as text, verdict, note). A claim whose figure JSON is missing is
@@ -30,16 +31,6 @@ class Claim:
     paper: str             # the paper's value
     figure: str            # figure JSON stem the numbers come from
     judge: Callable[[dict], tuple[str, str, str]]   # numbers -> (ours, verdict, note)
-
-
-def _get(numbers: dict, path: str):
-    """numbers["a"]["b"] for path "a.b"; None if absent."""
-    cur = numbers
-    for part in path.split("."):
-        if not isinstance(cur, dict) or part not in cur:
-            return None
-        cur = cur[part]
-    return cur
 
 
 def _f(x, fmt: str = ".3g") -> str:
@@ -129,6 +120,23 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
     tmp = out.with_name(f".{out.name}.tmp")
     tmp.write_text(text)
     tmp.replace(out)
+    return out
+
+
+def inputs(figures_dir) -> list[Path]:
+    """Every file the report of ``figures_dir`` reads that exists: its ``fig*.json``, Fig. 2's JSON
+    of every scale (:func:`render_scales`), its ``preparation.json`` (:func:`render_preparation`)
+    and the default scale's studies (:func:`load_studies`). The Makefile's report target lists the
+    same files (tests/workflow/test_build_graph.py checks it)."""
+    d = Path(figures_dir)
+    root = scale_dirs(d)["default"]
+    found = sorted(d.glob("fig*.json"))
+    found += [s / "fig2_avalanche_criterion.json" for s in scale_dirs(d).values()]
+    found += [d / "preparation.json"] + [root / f for f in STUDIES.values()]
+    out = []
+    for p in found:
+        if p.exists() and p not in out:
+            out.append(p)
     return out
 
 

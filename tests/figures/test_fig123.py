@@ -13,7 +13,7 @@ import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
 
 from tiltpile.analysis import CLUSTER_COLUMNS, resegment  # noqa: E402
-from tiltpile.figures import data, fig1, fig2, fig3  # noqa: E402
+from tiltpile.figures import data, fig1, fig2, fig3, snapshot  # noqa: E402
 
 QUIET_LOST = 0.001
 
@@ -304,8 +304,8 @@ def test_fig3_no_failure_no_clusters_gives_nan():
 def test_frame_before_onset():
     lf = np.r_[[QUIET_LOST] * 20, 0.05, 0.05, [QUIET_LOST] * 5, np.nan]
     fr = _run(7, lf)                                         # onset at frame 20, theta 2.0
-    assert fig3.frame_before_onset(fr, 7, 0.3) == 17
-    assert fig3.frame_before_onset(fr, 7, 5.0) == 0          # clipped to the first frame
+    assert snapshot.frame_before_onset(fr, 7, 0.3) == 17
+    assert snapshot.frame_before_onset(fr, 7, 5.0) == 0          # clipped to the first frame
 
 
 def test_snapshot_layers_categories_and_segments():
@@ -322,20 +322,20 @@ def test_snapshot_layers_categories_and_segments():
         # next frame: 1-2 and 0-4 are gone
         "next": (np.array([[0, 1], [2, 3], [3, -1]]), np.ones((3, 2)), np.ones(3)),
     }
-    lay = fig3.snapshot_layers(snap)
-    assert lay["category"].tolist() == [fig3.FAIL_IN_CLUSTER, fig3.FAIL_IN_CLUSTER,
-                                        fig3.FAIL_OUTSIDE, fig3.CLUSTER, fig3.FIXED, fig3.FIXED]
+    lay = snapshot.snapshot_layers(snap)
+    assert lay["category"].tolist() == [snapshot.FAIL_IN_CLUSTER, snapshot.FAIL_IN_CLUSTER,
+                                        snapshot.FAIL_OUTSIDE, snapshot.CLUSTER, snapshot.FIXED, snapshot.FIXED]
     assert (lay["n_clusters"], lay["n_in_clusters"]) == (2, 3)
     assert (lay["n_failing"], lay["n_failing_in_cluster"]) == (3, 2)
     assert lay["n_critical_contacts"] == 2
     assert lay["segments"].tolist() == [[[1.0, 2.0], [2.0, 2.0]], [[4.0, 0.5], [4.0, 0.0]]]
     fig, ax = plt.subplots()
-    fig3.draw_snapshot(ax, lay)
+    snapshot.draw_snapshot(ax, lay)
     plt.close(fig)
     # counted geometrically (lost_gap), as the observables can be: grain 2 moves 0.01 d away
     # from 1 by the next frame, grain 0 stays on the fixed grain 4; only 1-2 has opened
     moved = position.copy()
     moved[2:4, 0] += 0.01
-    geo = fig3.snapshot_layers(dict(snap, next_position=moved), lost_gap=1e-3)
+    geo = snapshot.snapshot_layers(dict(snap, next_position=moved), lost_gap=1e-3)
     assert (geo["n_failing"], geo["n_failing_in_cluster"]) == (2, 1)
-    assert geo["category"][0] == fig3.CLUSTER and geo["category"][2] == fig3.FAIL_OUTSIDE
+    assert geo["category"][0] == snapshot.CLUSTER and geo["category"][2] == snapshot.FAIL_OUTSIDE

@@ -16,7 +16,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tiltpile.figures import data, fig1, fig2, fig3, fig4, fig5, fig6, style
+from tiltpile.figures import data, fig1, fig2, fig3, fig4, fig5, fig6, snapshot, style
 from tiltpile.figures.records import (DROPPED_CLUSTER_COLUMNS, picture_frames, write_record_of,
                                       write_records)
 from tiltpile.record import RecordError, read_meta, read_record, record_files, write_record
@@ -241,8 +241,8 @@ def test_picture_frames_are_the_figures_choices_with_their_successors():
     from tiltpile.analysis import resegment
     f = resegment(pd.DataFrame({"run": 4, "frame": np.arange(12), "theta_deg": theta,
                                 "lost_fraction": lost, "n_active": 1000}), cutoff=0.02)
-    a = fig1.pick_avalanche_frame(f, 4)
-    b = fig3.frame_before_onset(f, 4)
+    a = snapshot.pick_avalanche_frame(f, 4)
+    b = snapshot.frame_before_onset(f, 4)
     assert (a, b) == (9, 5)           # most lost while avalanching; 0.3 deg before the onset at 0.8
     assert picture_frames(f, 4) == [5, 6, 9, 10]
     g = f[f["frame"] <= 9]            # the chosen frame is the last: no successor

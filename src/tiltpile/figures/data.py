@@ -1,14 +1,41 @@
-"""What every figure notebook starts from: the ensemble tables, its description, sample frames.
+"""What every figure notebook starts from: the ensemble tables, its description, sample frames,
+and what several figures read from them alike.
 
 :class:`Ensemble` and :func:`load_ensemble` live in :mod:`tiltpile.analysis.ensemble_data` (the
 measurement studies use them too); they are re-exported here for the notebooks.
+:func:`analysis_params` gives the parameters an ensemble's tables were computed with,
+:func:`per_run_quiet` the per-run means over quiet frames (Fig. 2 and the preparation study).
 """
 
 from __future__ import annotations
 
+import numpy as np
+import pandas as pd
+
+from tiltpile.analysis import DEFAULT_PARAMS
 from tiltpile.analysis.ensemble_data import Ensemble, load_ensemble
 
-__all__ = ["Ensemble", "load_ensemble", "snapshot"]
+__all__ = ["Ensemble", "load_ensemble", "snapshot", "analysis_params", "per_run_quiet"]
+
+
+def analysis_params(ens: Ensemble) -> dict:
+    """The analysis parameters the ensemble's tables were computed with (defaults filled in)."""
+    return dict(DEFAULT_PARAMS, **(ens.meta.get("analysis") or {}))
+
+
+def per_run_quiet(frames: pd.DataFrame, seeds) -> pd.DataFrame:
+    """Per run (rows in the order of seeds): mean z, n_m, delta z_gen over its quiet frames and
+    the fraction of its quiet frames with delta z_gen < 0 (NaN for a run without quiet frame)."""
+    rows = []
+    for s in seeds:
+        g = frames[(frames["run"] == s) & ~frames["avalanching"].astype(bool)]
+        dz = g["dz_gen"].to_numpy(float)
+        dz = dz[np.isfinite(dz)]
+        rows.append({"run": s, "z": float(g["z"].mean()) if len(g) else np.nan,
+                     "n_m": float(g["n_m"].mean()) if len(g) else np.nan,
+                     "dz_gen": float(dz.mean()) if dz.size else np.nan,
+                     "below": float((dz < 0).mean()) if dz.size else np.nan})
+    return pd.DataFrame(rows)
 
 
 def snapshot(ens: Ensemble, seed: int, frame: int) -> dict:

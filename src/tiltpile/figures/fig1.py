@@ -25,7 +25,8 @@ import pandas as pd
 from tiltpile.analysis import contacts as _ct
 from tiltpile.analysis.stats import bootstrap_ci, window_edges
 
-from . import fig3, style
+from . import style
+from .snapshot import draw_snapshot, load_snapshot, pick_avalanche_frame, snapshot_extent
 
 NAME = "fig1_isostaticity"
 
@@ -87,20 +88,6 @@ def path_crossing(path: pd.DataFrame) -> float:
     return float(t[i - 1] + (t[i] - t[i - 1]) * dz[i - 1] / (dz[i - 1] - dz[i]))
 
 
-def pick_avalanche_frame(frames: pd.DataFrame, seed: int) -> int:
-    """The avalanching frame of run ``seed`` with the largest lost fraction (ties: the earliest);
-    without avalanche, the run's frame with the largest lost fraction."""
-    g = frames[frames["run"] == seed].sort_values("frame", kind="stable")
-    if g.empty:
-        raise ValueError(f"run {seed} is not in the table")
-    lf = g["lost_fraction"].to_numpy(float)
-    av = g["avalanching"].to_numpy(bool) & np.isfinite(lf)
-    cand = np.flatnonzero(av) if av.any() else np.flatnonzero(np.isfinite(lf))
-    if cand.size == 0:
-        return int(g["frame"].iloc[0])
-    return int(g["frame"].to_numpy()[cand[np.argmax(lf[cand])]])
-
-
 def _mean(x) -> float:
     x = np.asarray(x, dtype=float)
     x = x[np.isfinite(x)]
@@ -113,8 +100,9 @@ def compute(ens, sample_seed: int | None = None, avalanche_frame: int | None = N
     """Numbers and plot data of Fig. 1 (module docstring).
 
     sample_seed: run of the snapshot (None: the first run with an onset); avalanche_frame: its
-    frame (None: :func:`pick_avalanche_frame`); path_lo, path_width, min_frames: windows of the mean
-    path (:func:`mean_path`); snapshot: read the snapshot from the run file.
+    frame (None: :func:`~tiltpile.figures.snapshot.pick_avalanche_frame`); path_lo, path_width,
+    min_frames: windows of the mean path (:func:`mean_path`); snapshot: read the snapshot from the
+    run file.
 
     numbers:
       z_start, n_m_start, dz_gen_start   mean over runs of the first frame (start of the tilt)
@@ -182,7 +170,7 @@ def compute(ens, sample_seed: int | None = None, avalanche_frame: int | None = N
     d = {"path": path, "start": (numbers["z_start"], numbers["n_m_start"]),
          "pre_onset": (numbers["z_pre_onset"], numbers["n_m_pre_onset"]),
          "avalanche": (numbers["z_avalanche"], numbers["n_m_avalanche"]),
-         "snapshot": fig3.load_snapshot(ens, seed, frame) if snapshot else None}
+         "snapshot": load_snapshot(ens, seed, frame) if snapshot else None}
     return numbers, d
 
 
@@ -190,11 +178,11 @@ def plot(data: dict, numbers: dict):
     """(a) the (z, n_m) diagram with the marginal line, hypothesis and mean path; (b) snapshot."""
     from matplotlib.collections import LineCollection
     lay = data["snapshot"]
-    ew, eh = fig3.snapshot_extent(lay) if lay is not None else (2.0, 1.0)
+    ew, eh = snapshot_extent(lay) if lay is not None else (2.0, 1.0)
     left, right = 0.16, 0.97
     h_b = (right - left) * style.SINGLE_COLUMN_IN * eh / ew
-    height, gkw = fig3.stacked_layout([1.9, h_b], [0.62], top_in=0.5, bottom_in=0.05, left=left,
-                                      right=right)
+    height, gkw = style.stacked_layout([1.9, h_b], [0.62], top_in=0.5, bottom_in=0.05, left=left,
+                                       right=right)
     fig, (ax, bx) = style.figure(2, 1, height=height, gridspec_kw=gkw)
     path = data["path"]
     z0, m0 = data["start"]
@@ -250,6 +238,6 @@ def plot(data: dict, numbers: dict):
     ax.legend(loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=2, handlelength=1.8,
               columnspacing=1.0)
     style.panel_label(ax, "a")
-    fig3.draw_snapshot(bx, lay)
+    draw_snapshot(bx, lay)
     style.panel_label(bx, "b", x=0.0, y=1.0)
     return fig

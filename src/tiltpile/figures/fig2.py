@@ -39,21 +39,16 @@ import numpy as np
 import pandas as pd
 
 from tiltpile.analysis import run_table
+from tiltpile.analysis.ensemble_data import first_onsets
 from tiltpile.analysis import stats as _st
 from tiltpile.analysis.avalanche import (SPACING_LIMIT, ResolutionWarning, frame_spacing_check,
                                          onset_robustness_ensemble, stretches)
 from tiltpile.analysis.stats import power_law_departure  # noqa: F401  (the estimator of panel a)
 
-from . import fig3, style
+from . import style
+from .data import analysis_params, per_run_quiet
 
 NAME = "fig2_avalanche_criterion"
-
-
-def first_onsets(frames: pd.DataFrame, seeds) -> np.ndarray:
-    """theta of the first avalanche onset of each run (NaN without onset), in the order of seeds."""
-    on = frames[frames["onset"].astype(bool)].sort_values(["run", "frame"], kind="stable")
-    first = on.groupby("run")["theta_deg"].first()
-    return np.array([float(first.get(s, np.nan)) for s in seeds])
 
 
 def _stats(x) -> dict:
@@ -74,21 +69,6 @@ def _max_abs(x) -> float:
 def _ci(prefix: str, ci: dict) -> dict:
     """{prefix_ci_low, prefix_ci_high} of a :func:`tiltpile.analysis.stats.bootstrap_ci` result."""
     return {f"{prefix}_ci_low": ci["low"], f"{prefix}_ci_high": ci["high"]}
-
-
-def per_run_quiet(frames: pd.DataFrame, seeds) -> pd.DataFrame:
-    """Per run (rows in the order of seeds): mean z, n_m, delta z_gen over its quiet frames and
-    the fraction of its quiet frames with delta z_gen < 0 (NaN for a run without quiet frame)."""
-    rows = []
-    for s in seeds:
-        g = frames[(frames["run"] == s) & ~frames["avalanching"].astype(bool)]
-        dz = g["dz_gen"].to_numpy(float)
-        dz = dz[np.isfinite(dz)]
-        rows.append({"run": s, "z": float(g["z"].mean()) if len(g) else np.nan,
-                     "n_m": float(g["n_m"].mean()) if len(g) else np.nan,
-                     "dz_gen": float(dz.mean()) if dz.size else np.nan,
-                     "below": float((dz < 0).mean()) if dz.size else np.nan})
-    return pd.DataFrame(rows)
 
 
 def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
@@ -153,7 +133,7 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
                                    some run (:func:`tiltpile.analysis.frame_spacing_check`)
       sample_seed
     """
-    p = fig3.analysis_params(ens)
+    p = analysis_params(ens)
     cutoff = float(p["cutoff"])
     f = ens.frames.sort_values(["run", "frame"], kind="stable")
     av = f["avalanching"].to_numpy(bool)
@@ -297,8 +277,8 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
 def plot(data: dict, numbers: dict):
     """Panels a-d (module docstring)."""
     from matplotlib.colors import LogNorm
-    height, gkw = fig3.stacked_layout([1.45, 1.45], [0.5], top_in=0.05, bottom_in=0.38,
-                                      left=0.14, right=0.97)
+    height, gkw = style.stacked_layout([1.45, 1.45], [0.5], top_in=0.05, bottom_in=0.38,
+                                       left=0.14, right=0.97)
     fig, axs = style.figure(2, 2, height=height, gridspec_kw=dict(gkw, wspace=0.42))
     (a, b), (c, dd) = axs
 

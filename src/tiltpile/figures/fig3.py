@@ -21,8 +21,8 @@ Frame convention (analysis.avalanche): n_lost, n_failing, n_failing_in_cluster o
 what is lost between k and k + 1, for grains as they were at frame k; the last frame of a run has
 no successor (lost_fraction NaN, counts -1) and is dropped here.
 
-The snapshot helpers (:func:`snapshot_layers`, :func:`load_snapshot`, :func:`draw_snapshot`) are
-shared with Fig. 1b.
+The pile picture and the frame it shows are those of :mod:`tiltpile.figures.snapshot` (shared with
+Fig. 1b).
 """
 
 from __future__ import annotations
@@ -30,198 +30,13 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
-from tiltpile.analysis import DEFAULT_PARAMS
-from tiltpile.analysis import observables as _ob
-from tiltpile.analysis import contacts as _ct
 from tiltpile.analysis import stats as _st
 
 from . import style
+from .snapshot import (SNAPSHOT_OFFSET_DEG, draw_snapshot, frame_before_onset, load_snapshot,
+                       snapshot_extent)
 
 NAME = "fig3_clusters_failure"
-SNAPSHOT_OFFSET_DEG = 0.3   # panel a: the quiet frame closest to theta_m minus this (deg)
-
-# grain categories of a snapshot (index into CATEGORY_COLORS)
-GRAIN, FIXED, CLUSTER, FAIL_IN_CLUSTER, FAIL_OUTSIDE = range(5)
-CATEGORY_COLORS = [style.COLORS["grain"], style.COLORS["fixed"], style.COLORS["cluster"],
-                   style.COLORS["fail_in_cluster"], style.COLORS["fail_outside"]]
-
-
-# ----------------------------------------------------------------------------------------------
-# helpers shared with the other figure modules
-
-
-def analysis_params(ens) -> dict:
-    """The analysis parameters the ensemble's tables were computed with (defaults filled in)."""
-    return dict(DEFAULT_PARAMS, **(ens.meta.get("analysis") or {}))
-
-
-def frame_before_onset(frames: pd.DataFrame, seed: int,
-                       offset_deg: float = SNAPSHOT_OFFSET_DEG) -> int:
-    """The quiet frame of run ``seed`` closest to theta_m - offset_deg (theta_m: first onset).
-
-    Only quiet frames before the first onset are candidates (ties: the earlier frame). Without an
-    onset, the last quiet frame; with no candidate at all, the run's first frame.
-    """
-    g = frames[frames["run"] == seed].sort_values("frame", kind="stable")
-    if g.empty:
-        raise ValueError(f"run {seed} is not in the table")
-    quiet = ~g["avalanching"].to_numpy(bool)
-    onset = g["onset"].to_numpy(bool)
-    if not onset.any():
-        return int(g["frame"].to_numpy()[quiet][-1]) if quiet.any() else int(g["frame"].iloc[0])
-    i0 = int(np.flatnonzero(onset)[0])
-    cand = np.flatnonzero(quiet[:i0])
-    if cand.size == 0:
-        return int(g["frame"].iloc[0])
-    theta = g["theta_deg"].to_numpy(float)
-    target = theta[i0] - offset_deg
-    best = cand[np.argmin(np.abs(theta[cand] - target))]     # argmin: first of ties
-    return int(g["frame"].to_numpy()[best])
-
-
-def snapshot_layers(snap: dict, mu: float = 0.5, mu_wall: float | None = None,
-                    eps: float | None = None, link: str = "contacts",
-                    cluster_region: str = "mobile", ray_spacing: float = 0.1,
-                    touch_tol: float = 0.05, lost_gap: float | None = None) -> dict:
-    """What the pile pictures of Figs. 1b and 3 draw, from one frame (a :func:`data.snapshot`).
-
-    The contacts, mobilized contacts and clusters are those of the observables
-    (:func:`tiltpile.analysis.observables.frame_contacts`); failing grains are the mobile ends of
-    the contacts lost by the next frame (:func:`~tiltpile.analysis.observables.lost_between`, with
-    the same ``lost_gap``).
-
-    Returns dict: position (N, 2), radius (N,), category (N,) int8 (GRAIN, FIXED, CLUSTER,
-    FAIL_IN_CLUSTER, FAIL_OUTSIDE), segments (M, 2, 2) one per fully mobilized contact (centre to
-    centre, or centre to the wall/floor contact point), theta_deg, box_length, and the counts
-    n_clusters, n_in_clusters, n_failing, n_failing_in_cluster, n_critical_contacts.
-    """
-    pos = np.asarray(snap["position"], dtype=float)
-    radius = np.asarray(snap["radius"], dtype=float)
-    fixed = np.asarray(snap["fixed"], dtype=bool)
-    L = float(snap["box_length"])
-    n = radius.size
-    fc = _ob.frame_contacts(radius, fixed, L, pos, snap["pair"], snap["force"], snap.get("status"),
-                            mu=mu, mu_wall=mu_wall, eps=eps, link=link,
-                            cluster_region=cluster_region, ray_spacing=ray_spacing,
-                            touch_tol=touch_tol)
-    pair, mobil, labels = fc["pair"], fc["mobilized"], fc["labels"]
-    in_cluster = labels >= 0
-    failing = np.zeros(n, dtype=bool)
-    if snap.get("next") is not None:
-        p2, f2 = np.asarray(snap["next"][0]).reshape(-1, 2), snap["next"][1]
-        cur = {"pair": p2, "active": _ct.active_mask(f2), "position": snap.get("next_position")}
-        lost = _ob.lost_between({"pair": pair, "active": fc["active"]}, cur, n, radius, L, lost_gap)
-        failing = _ct.failing_grains(n, pair, lost, fixed)
-    cat = np.full(n, GRAIN, dtype=np.int8)
-    cat[fixed] = FIXED
-    cat[in_cluster] = CLUSTER
-    cat[failing & in_cluster] = FAIL_IN_CLUSTER
-    cat[failing & ~in_cluster] = FAIL_OUTSIDE
-    i, j = pair[mobil, 0], pair[mobil, 1]
-    a = pos[i]
-    b = pos[np.maximum(j, 0)].copy()           # wall contacts: the point on the wall
-    fl, le, ri = j == _ct.WALL_FLOOR, j == _ct.WALL_LEFT, j == _ct.WALL_RIGHT
-    b[fl] = np.c_[a[fl, 0], np.zeros(fl.sum())]
-    b[le] = np.c_[np.zeros(le.sum()), a[le, 1]]
-    b[ri] = np.c_[np.full(ri.sum(), L), a[ri, 1]]
-    return {"position": pos, "radius": radius, "category": cat,
-            "segments": np.stack([a, b], axis=1) if i.size else np.zeros((0, 2, 2)),
-            "theta_deg": float(snap["theta_deg"]), "box_length": L,
-            "n_clusters": int(labels.max() + 1) if in_cluster.any() else 0,
-            "n_in_clusters": int(in_cluster.sum()), "n_failing": int(failing.sum()),
-            "n_failing_in_cluster": int((failing & in_cluster).sum()),
-            "n_critical_contacts": int(i.size)}
-
-
-def load_snapshot(ens, seed: int, frame: int) -> dict:
-    """:func:`snapshot_layers` of one stored frame, with the ensemble's friction and analysis
-    parameters; adds seed and frame."""
-    from . import data
-    p = analysis_params(ens)
-    scene = (ens.config or {}).get("scene", {})
-    mu = float(scene.get("mu", 0.5))
-    lay = snapshot_layers(data.snapshot(ens, seed, frame), mu=mu,
-                          mu_wall=float(scene.get("mu_wall", mu)), eps=p["eps"], link=p["link"],
-                          cluster_region=p["cluster_region"], ray_spacing=p["ray_spacing"],
-                          touch_tol=p["touch_tol"], lost_gap=p["lost_gap"])
-    lay.update(seed=int(seed), frame=int(frame))
-    return lay
-
-
-def snapshot_extent(lay: dict) -> tuple[float, float]:
-    """(width, height) in d of the picture :func:`draw_snapshot` makes (for the figure layout)."""
-    y = lay["position"][:, 1]
-    dmax = 2.0 * float(np.max(lay["radius"]))
-    h = float(np.ptp(y)) + 2.0 * dmax
-    return lay["box_length"] + _gravity_margin(h), h
-
-
-def _gravity_margin(h: float) -> float:
-    return 0.42 * h
-
-
-def draw_snapshot(ax, lay: dict | None, legend: bool = True) -> None:
-    """Draw a :func:`snapshot_layers` picture: grains by category, critical contacts, the box
-    walls, and gravity as an arrow right of the box (in data units, so its angle is true)."""
-    from matplotlib.collections import LineCollection
-    from matplotlib.lines import Line2D
-    if lay is None:
-        ax.text(0.5, 0.5, "no snapshot", transform=ax.transAxes, ha="center", va="center")
-        ax.set_xticks([])
-        ax.set_yticks([])
-        return
-    L = lay["box_length"]
-    colors = np.asarray(CATEGORY_COLORS, dtype=object)[lay["category"]]
-    style.draw_pile(ax, lay["position"], lay["radius"], list(colors), box_length=L)
-    if len(lay["segments"]):
-        ax.add_collection(LineCollection(lay["segments"], colors=style.COLORS["critical_contact"],
-                                         linewidths=0.7, capstyle="round", zorder=3))
-    y0, y1 = ax.get_ylim()
-    h = y1 - y0
-    m = _gravity_margin(h)
-    ax.set_xlim(0.0, L + m)
-    ax.plot([0, 0, L, L], [y1, 0, 0, y1], color=style.COLORS["fixed"], lw=0.6, zorder=0)
-    for side in ("top", "right", "bottom", "left"):
-        ax.spines[side].set_visible(False)
-    t = np.radians(lay["theta_deg"])
-    lg = 0.5 * h
-    g = np.array([np.sin(t), -np.cos(t)]) * lg
-    cx, cy = L + 0.4 * m, y0 + 0.6 * h
-    ax.annotate("", xy=(cx + g[0] / 2, cy + g[1] / 2), xytext=(cx - g[0] / 2, cy - g[1] / 2),
-                xycoords="data", textcoords="data", annotation_clip=False,
-                arrowprops=dict(arrowstyle="-|>", color=style.COLORS["gravity"], lw=1.2,
-                                shrinkA=0, shrinkB=0))
-    ax.text(cx + 0.12 * m, cy - g[1] / 2, r"$\mathbf{g}$", color=style.COLORS["gravity"],
-            ha="left", va="top")
-    ax.text(cx, cy + g[1] / 2 - 0.04 * h, rf"$\theta = {lay['theta_deg']:.1f}^\circ$",
-            ha="center", va="top", fontsize=6.5)
-    if legend:
-        def dot(c):
-            return Line2D([], [], ls="none", marker="o", ms=4, mfc=c, mec="none")
-        cat = np.asarray(lay["category"])
-        items = [(np.any(cat == CLUSTER), dot(style.COLORS["cluster"]), "in cluster"),
-                 (len(lay["segments"]) > 0,
-                  Line2D([], [], color=style.COLORS["critical_contact"], lw=1.2),
-                  "critical contact"),
-                 (np.any(cat == FAIL_IN_CLUSTER), dot(style.COLORS["fail_in_cluster"]),
-                  "failing, in cluster"),
-                 (np.any(cat == FAIL_OUTSIDE), dot(style.COLORS["fail_outside"]),
-                  "failing, outside")]
-        handles = [h for shown, h, _ in items if shown]      # only what the picture holds
-        labels = [t for shown, _, t in items if shown]
-        ax.legend(handles, labels, loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=4,
-                  handlelength=1.2, handletextpad=0.3, columnspacing=0.8, borderaxespad=0.1)
-
-
-def stacked_layout(rows_in, gaps_in, top_in: float, bottom_in: float, left: float = 0.15,
-                   right: float = 0.97) -> tuple[float, dict]:
-    """Figure height and ``gridspec_kw`` for rows of given heights (inches) separated by given
-    gaps (inches), so that an aspect-locked pile picture fills its row without blank bands."""
-    rows_in = [float(r) for r in rows_in]
-    gap = float(np.mean(gaps_in)) if len(gaps_in) else 0.0
-    h = top_in + sum(rows_in) + gap * (len(rows_in) - 1) + bottom_in
-    return h, {"height_ratios": rows_in, "hspace": gap / float(np.mean(rows_in)),
-               "top": 1.0 - top_in / h, "bottom": bottom_in / h, "left": left, "right": right}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -406,8 +221,8 @@ def plot(data: dict, numbers: dict):
     ew, eh = snapshot_extent(lay) if lay is not None else (2.0, 1.0)
     left, right = 0.15, 0.97
     h_top = (right - left) * style.SINGLE_COLUMN_IN * eh / ew
-    height, gkw = stacked_layout([h_top, 1.3], [0.22], top_in=0.3, bottom_in=0.4, left=left,
-                                 right=right)
+    height, gkw = style.stacked_layout([h_top, 1.3], [0.22], top_in=0.3, bottom_in=0.4,
+                                       left=left, right=right)
     fig, axs = style.figure(2, 2, height=height, gridspec_kw=dict(gkw, wspace=0.45))
     gs = axs[0, 0].get_gridspec()
     for a in axs[0]:

@@ -15,7 +15,7 @@ ensembles -- the first one is the reference, normally fresh piles -- run by run:
   slide, every onset before the end of the tilt (such runs are marked: a lower bound on what a
   longer tilt would count); and the onsets below the study's largest pretilt angle (a pile
   tilted there before should rearrange less below it);
-* <z> and <n_m> over the run's quiet frames (bulk, force contacts; :func:`fig2.per_run_quiet`);
+* <z> and <n_m> over the run's quiet frames (bulk, force contacts; :func:`tiltpile.figures.data.per_run_quiet`);
 
 and per ensemble the Fig. 2b two-population measure of the lost fraction (Ashman's D, valley
 depth, delta BIC; :func:`tiltpile.analysis.stats.bimodality` as Fig. 2 applies it) and the
@@ -41,6 +41,7 @@ from tiltpile.analysis.stats import diff_ci
 from tiltpile.analysis.observables import run_files
 
 from . import fig2, style
+from .data import per_run_quiet
 
 NAME = "preparation"
 
@@ -254,7 +255,7 @@ def per_run_table(ens, theta_onset, theta_slide, below_deg: float = np.nan,
     onset_over_rev and n_onsets_below_rev (``theta_rev``: the ensemble's own largest history
     angle; NaN for fresh piles) and the structure at frame 0 (:func:`start_structure`)."""
     f = ens.frames.sort_values(["run", "frame"], kind="stable")
-    q = fig2.per_run_quiet(f, ens.seeds)
+    q = per_run_quiet(f, ens.seeds)
     struct = start_structure(ens)
     rows = []
     for k, s in enumerate(ens.seeds):

@@ -12,12 +12,12 @@ A record holds, for one finished run:
   (:func:`tiltpile.analysis.tables.table_code`);
 * ``source``: the run file's name, size, attribute digest (``attrs_sha256``) and frames digest
   (``store.Run.frames_digest``), so that the record can be traced to its run file;
-* the frames of the pile pictures (Figs. 1b and 3): for every run, the frames the figure modules
-  choose when it is the sample run -- :func:`fig1.pick_avalanche_frame` and
-  :func:`fig3.frame_before_onset` with its default offset -- each with its successor (failing
-  grains need the next frame's contacts): the sample run is the first with an onset, which a
-  record written when its run finishes cannot know, and any run may be asked for
-  (``sample_seed``). Up to four frames: ~0.17 MB at 1000 grains.
+* the frames of the pile pictures (Figs. 1b and 3): for every run, the frames the pictures
+  choose when it is the sample run -- :func:`~tiltpile.figures.snapshot.pick_avalanche_frame`
+  and :func:`~tiltpile.figures.snapshot.frame_before_onset` with its default offset -- each with
+  its successor (failing grains need the next frame's contacts): the sample run is the first
+  with an onset, which a record written when its run finishes cannot know, and any run may be
+  asked for (``sample_seed``). Up to four frames: ~0.17 MB at 1000 grains.
 
 Sizes (measured): 0.55 MB for a 1000-grain run of 441 frames (18 600 cluster rows at ~20 bytes,
 four picture frames 0.17 MB), 0.15 MB for a smoke run; estimated for a 4000-grain paper run of
@@ -43,24 +43,26 @@ from tiltpile.analysis.tables import table_code
 from tiltpile.record import (FORMAT_VERSION, RecordError, read_meta, record_files, record_name,
                              write_record)
 
-from . import fig1, fig3
+from . import snapshot
 
 # per-cluster columns a record leaves out: read by no figure (nor the report or the studies)
 DROPPED_CLUSTER_COLUMNS = ("phi_deg", "rg_long", "rg_short", "x_com", "y_com")
 # what the writer keeps, in the record's meta: a record written under another choice is stale
+# (the text of "pictures" is a name of the choice, kept as written so that records stay current;
+# the functions it names are snapshot.pick_avalanche_frame and snapshot.frame_before_onset)
 WRITER = {"dropped_cluster_columns": list(DROPPED_CLUSTER_COLUMNS),
           "pictures": "fig1.pick_avalanche_frame and fig3.frame_before_onset "
-                      f"(offset {fig3.SNAPSHOT_OFFSET_DEG} deg), each with its successor"}
+                      f"(offset {snapshot.SNAPSHOT_OFFSET_DEG} deg), each with its successor"}
 
 
 def picture_frames(frames: pd.DataFrame, seed: int) -> list[int]:
     """The frames of run ``seed`` the pile pictures draw when it is the sample run (Fig. 1b:
-    :func:`fig1.pick_avalanche_frame`; Fig. 3a: :func:`fig3.frame_before_onset`), each with its
-    successor if the run has one. frames: the run's per-frame table (default parameters)."""
+    :func:`snapshot.pick_avalanche_frame`; Fig. 3a: :func:`snapshot.frame_before_onset`), each
+    with its successor if the run has one. frames: the run's per-frame table (default parameters)."""
     g = frames[frames["run"] == seed]
     n = int(g["frame"].max()) + 1 if len(g) else 0
-    chosen = (fig1.pick_avalanche_frame(frames, seed),
-              fig3.frame_before_onset(frames, seed, fig3.SNAPSHOT_OFFSET_DEG))
+    chosen = (snapshot.pick_avalanche_frame(frames, seed),
+              snapshot.frame_before_onset(frames, seed, snapshot.SNAPSHOT_OFFSET_DEG))
     return sorted({k for f in chosen for k in (f, f + 1) if k < n})
 
 

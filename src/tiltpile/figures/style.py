@@ -76,6 +76,17 @@ def figure(nrows: int = 1, ncols: int = 1, height: float | None = None, width: f
     return plt.subplots(nrows, ncols, figsize=(width, height), **kw)
 
 
+def stacked_layout(rows_in, gaps_in, top_in: float, bottom_in: float, left: float = 0.15,
+                   right: float = 0.97) -> tuple[float, dict]:
+    """Figure height and ``gridspec_kw`` for rows of given heights (inches) separated by given
+    gaps (inches), so that an aspect-locked pile picture fills its row without blank bands."""
+    rows_in = [float(r) for r in rows_in]
+    gap = float(np.mean(gaps_in)) if len(gaps_in) else 0.0
+    h = top_in + sum(rows_in) + gap * (len(rows_in) - 1) + bottom_in
+    return h, {"height_ratios": rows_in, "hspace": gap / float(np.mean(rows_in)),
+               "top": 1.0 - top_in / h, "bottom": bottom_in / h, "left": left, "right": right}
+
+
 def panel_label(ax, text: str, x: float = 0.02, y: float = 0.96) -> None:
     """An italic panel letter (a, b, ...) in the top-left corner, as in the paper."""
     ax.text(x, y, text, transform=ax.transAxes, ha="left", va="top", fontstyle="italic",

@@ -1,0 +1,215 @@
+"""The build declares every dependency: editing a file rebuilds exactly the targets that read it.
+
+A scratch copy of the Makefile, ``src/``, ``notebooks/`` and up-to-date outputs (every figure's
+JSON, the report, the preparation study and the <z> chart, each newer than its inputs) is asked
+``make -n -W FILE`` (what would run if FILE were edited) for every source file, notebook and
+JSON the report reads. What would rebuild must be exactly what depends on FILE:
+
+* a figure notebook: itself and the modules of ``src/tiltpile`` its code imports, directly or not
+  (read from the source, as tests/test_layers.py reads imports);
+* the preparation study (``make preparation``): likewise for notebooks/preparation.ipynb;
+* the <z> chart (``make zcount``): what ``tiltpile.figures.zcount`` imports, and the command;
+* the report: ``tiltpile.report`` and its command, every file :func:`tiltpile.report.inputs`
+  lists, and every figure JSON rebuilt before it.
+
+The run stamps and the notebook parameters (targets that are always checked) are held old with
+``-o``, so that only the edited file moves anything.
+"""
+
+from __future__ import annotations
+
+import ast
+import json
+import os
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import nbformat
+import pytest
+
+ROOT = Path(__file__).resolve().parents[2]
+SRC = ROOT / "src"
+
+
+# -- what depends on what, from the source --------------------------------------------------------
+
+def _modules() -> dict[str, Path]:
+    out = {}
+    for p in sorted((SRC / "tiltpile").rglob("*.py")):
+        parts = list(p.relative_to(SRC).with_suffix("").parts)
+        out[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = p
+    return out
+
+
+MODULES = _modules()
+
+
+def _resolve(name: str) -> str:
+    while name and name not in MODULES:
+        name = name.rpartition(".")[0]
+    return name
+
+
+def _imports(tree: ast.AST, here: list[str]) -> set[str]:
+    """tiltpile modules imported anywhere in ``tree`` (functions included); ``here``: the package
+    of the code, for relative imports."""
+    out = set()
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Import):
+            out |= {_resolve(a.name) for a in node.names if a.name.split(".")[0] == "tiltpile"}
+        elif isinstance(node, ast.ImportFrom):
+            base = node.module or ""
+            if node.level:
+                base = ".".join(here[: len(here) - node.level + 1] + ([node.module] if node.module else []))
+            if base.split(".")[0] != "tiltpile":
+                continue
+            for a in node.names:
+                full = f"{base}.{a.name}"
+                out.add(full if full in MODULES else _resolve(base))
+    return out
+
+
+def _closure(mods) -> set[Path]:
+    """The files of ``mods`` and of everything they import, with their parent packages."""
+    seen, todo = set(), list(mods)
+    while todo:
+        m = todo.pop()
+        if not m or m in seen:
+            continue
+        seen.add(m)
+        parts = m.split(".")
+        todo += [".".join(parts[:k]) for k in range(1, len(parts))]
+        path = MODULES[m]
+        here = parts if path.name == "__init__.py" else parts[:-1]
+        todo += _imports(ast.parse(path.read_text()), here)
+    return {MODULES[m].relative_to(ROOT) for m in seen}
+
+
+def _notebook_code(nb: Path) -> set[Path]:
+    code = "\n".join(c.source for c in nbformat.read(nb, as_version=4).cells if c.cell_type == "code")
+    return _closure(_imports(ast.parse(code), ["tiltpile"])) | {nb.relative_to(ROOT)}
+
+
+FIG_NOTEBOOKS = sorted((ROOT / "notebooks").glob("fig*.ipynb"))
+# target -> the files it is built from (inputs of the report beside these: see the test)
+NEEDS = {nb.stem: _notebook_code(nb) for nb in FIG_NOTEBOOKS}
+NEEDS["preparation"] = _notebook_code(ROOT / "notebooks" / "preparation.ipynb")
+NEEDS["zcount"] = _closure(["tiltpile.figures.zcount"]) | {Path("src/tiltpile/cli/zcount.py")}
+NEEDS["report"] = _closure(["tiltpile.report"]) | {Path("src/tiltpile/cli/report.py")}
+SCALE_JSON = [Path("figures/smoke/fig2_avalanche_criterion.json"),
+              Path("figures/paper/fig2_avalanche_criterion.json")]
+STUDY_JSON = [Path("figures/preparation.json"), Path("figures/zcount.json")]
+
+
+def test_figure_modules_import_no_other_figure_but_through_the_declared_ones():
+    """Shared figure code lives in data.py, style.py and snapshot.py; the only figure module another
+    imports is fig2 (the preparation study is Fig. 2's computation on several ensembles)."""
+    figures = {m for m in MODULES if re.fullmatch(r"tiltpile\.figures\.(fig\d|preparation|zcount)", m)}
+    for m in sorted(figures):
+        path = MODULES[m]
+        others = _imports(ast.parse(path.read_text()), m.split(".")[:-1]) & figures - {m}
+        allowed = {"tiltpile.figures.fig2"} if m.endswith("preparation") else set()
+        assert others <= allowed, f"{m} imports {sorted(others)}: move what they share to a shared module"
+
+
+# -- the scratch tree and make -n -------------------------------------------------------------------
+
+OLD_STAMPS = ["data/default/.runs", "notebooks/executed/default/.notebook-parameters",
+              "notebooks/executed/preparation/.inputs", "notebooks/executed/preparation/.parameters"]
+PLAN_ARGS = ["figures", "preparation", "zcount", "PREP_DIRS=data/prep"]
+
+
+@pytest.fixture(scope="module")
+def tree(tmp_path_factory) -> Path:
+    """A copy of what the build reads, every output up to date (sources at t0, stamps at t1,
+    outputs at t2, the report at t3)."""
+    d = tmp_path_factory.mktemp("build")
+    shutil.copy2(ROOT / "Makefile", d)
+    for name in ("environment.txt", "pyproject.toml"):
+        shutil.copy2(ROOT / name, d)
+    shutil.copytree(SRC, d / "src", ignore=shutil.ignore_patterns("__pycache__", "*.egg-info"))
+    (d / "notebooks").mkdir()
+    for nb in (ROOT / "notebooks").glob("*.ipynb"):
+        shutil.copy2(nb, d / "notebooks")
+    t0, t1, t2, t3 = 1_000_000_000, 1_000_001_000, 1_000_002_000, 1_000_003_000
+    for p in d.rglob("*"):
+        if p.is_file():
+            os.utime(p, (t0, t0))
+
+    def make(rel, t, text="{}\n"):
+        p = d / rel
+        p.parent.mkdir(parents=True, exist_ok=True)
+        p.write_text(text)
+        os.utime(p, (t, t))
+
+    for rel in OLD_STAMPS:
+        make(rel, t1, "")
+    make(".venv/.tiltpile-installed", t1, "")
+    make("notebooks/executed/default/diagnostics/.executed", t2, "")
+    for nb in FIG_NOTEBOOKS:
+        make(f"figures/{nb.stem}.json", t2)
+    for rel in SCALE_JSON + STUDY_JSON:
+        make(rel, t1)
+    make("notebooks/executed/preparation/.executed", t2, "")
+    make("notebooks/executed/preparation/.zcount", t2, "")
+    make("paper/REPRODUCTION.md", t3, "")
+    return d
+
+
+def _plan(tree: Path, *edited) -> set[str]:
+    """The targets `make -n figures preparation zcount` would rebuild if ``edited`` were edited."""
+    args = ["make", "-n", *[f"-W{e}" for e in edited], *[f"-o{s}" for s in OLD_STAMPS], *PLAN_ARGS]
+    r = subprocess.run(args, cwd=tree, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    out = set(re.findall(r"--no-progress-bar notebooks/(\w+)\.ipynb", r.stdout))
+    out -= {"run_diagnostics"}
+    if "tiltpile report" in r.stdout:
+        out.add("report")
+    if "tiltpile zcount" in r.stdout:
+        out.add("zcount")
+    return out
+
+
+def test_nothing_rebuilds_when_nothing_changed(tree):
+    assert _plan(tree) == set()
+
+
+def _expected(rel: Path) -> set[str]:
+    want = {t for t, files in NEEDS.items() if rel in files}
+    if want & set(NEEDS) - {"preparation", "zcount", "report"}:    # a figure JSON is rewritten
+        want.add("report")
+    return want
+
+
+EDITABLE = sorted({p for files in NEEDS.values() for p in files}
+                  | {Path("src/tiltpile/figures/records.py"), Path("src/tiltpile/sim/step.py"),
+                     Path("src/tiltpile/view/movie.py"), Path("src/tiltpile/bench/timing.py"),
+                     Path("src/tiltpile/cli/simulate.py"), Path("notebooks/run_diagnostics.ipynb")})
+
+
+@pytest.mark.parametrize("rel", EDITABLE, ids=[str(p) for p in EDITABLE])
+def test_an_edit_rebuilds_exactly_what_depends_on_it(tree, rel):
+    if rel.name == "run_diagnostics.ipynb":      # rebuilds only its own pictures
+        assert _plan(tree, rel) == set()
+        return
+    assert _plan(tree, rel) == _expected(rel), f"editing {rel}"
+
+
+def test_the_report_rebuilds_when_any_json_it_reads_changes(tree):
+    from tiltpile.report import inputs
+
+    read = {p.relative_to(tree) for p in inputs(tree / "figures")}
+    assert set(SCALE_JSON) | set(STUDY_JSON) <= read
+    for rel in sorted(read):
+        assert "report" in _plan(tree, rel), f"the report does not rebuild when {rel} changes"
+    assert _plan(tree, "figures/smoke/fig2_avalanche_criterion.json") == {"report"}
+
+
+def test_a_missing_study_output_is_rebuilt(tree):
+    (tree / "figures/zcount.json").rename(tree / "figures/zcount.json.away")
+    try:
+        assert _plan(tree) == {"zcount"}
+    finally:
+        (tree / "figures/zcount.json.away").rename(tree / "figures/zcount.json")
