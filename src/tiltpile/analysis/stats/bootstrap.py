@@ -1,0 +1,102 @@
+"""Uncertainties over runs: bootstrap confidence intervals (ensemble means of few runs).
+"""
+
+from __future__ import annotations
+
+import warnings
+
+import numpy as np
+
+from .errors import InsufficientDataError
+
+
+def bootstrap_ci(values, statistic=np.mean, confidence: float = 0.95, n_resamples: int = 9999,
+                 seed: int = 0, method: str = "BCa") -> dict:
+    """Estimate and bootstrap confidence interval of ``statistic`` over per-run values.
+
+    values: one number per run (NaN runs dropped). The runs are resampled with replacement
+    (scipy.stats.bootstrap; ``method`` "BCa" by default, which corrects for bias and skew and does
+    not assume a normal sampling distribution; it falls back to "percentile" when BCa is undefined,
+    e.g. for a degenerate resampling distribution). With fewer than 3 runs, or all values equal,
+    the interval is [estimate, estimate] when they are equal and NaN otherwise.
+
+    Returns dict estimate, low, high, n, confidence, method (the one used).
+    """
+    from scipy import stats as _sst
+    x = np.asarray(values, dtype=float).ravel()
+    x = x[np.isfinite(x)]
+    out = {"estimate": float(statistic(x)) if x.size else float("nan"), "low": float("nan"),
+           "high": float("nan"), "n": int(x.size), "confidence": float(confidence),
+           "method": method}
+    if x.size and np.all(x == x[0]):
+        out.update(low=float(x[0]), high=float(x[0]), method="degenerate")
+        return out
+    if x.size < 3:
+        return out
+    for m in (method, "percentile"):
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            res = _sst.bootstrap((x,), statistic, confidence_level=confidence,
+                                 n_resamples=n_resamples, method=m, vectorized=False,
+                                 rng=np.random.default_rng(seed))
+        lo, hi = float(res.confidence_interval.low), float(res.confidence_interval.high)
+        if np.isfinite(lo) and np.isfinite(hi):
+            out.update(low=lo, high=hi, method=m)
+            break
+    return out
+
+
+def bootstrap_runs_ci(groups: list, statistic, confidence: float = 0.95, n_resamples: int = 999,
+                      seed: int = 0) -> dict:
+    """Percentile bootstrap over runs of a statistic of pooled per-run data (e.g. a fit of the
+    clusters of resampled runs): ``statistic(list of the groups of one resample) -> float``.
+
+    groups: one item per run (anything ``statistic`` understands). Resamples whose statistic is
+    not finite are dropped (reported as ``n_failed``). Returns dict estimate (on all runs), low,
+    high, n (runs), n_resamples, n_failed, confidence, method "percentile".
+    """
+    rng = np.random.default_rng(seed)
+    k = len(groups)
+    est = float(statistic(list(groups))) if k else float("nan")
+    vals = []
+    for _ in range(n_resamples if k >= 2 else 0):
+        pick = rng.integers(0, k, size=k)
+        try:
+            v = float(statistic([groups[i] for i in pick]))
+        except (InsufficientDataError, ValueError, FloatingPointError):
+            v = float("nan")
+        vals.append(v)
+    vals = np.asarray(vals)
+    ok = vals[np.isfinite(vals)]
+    a = (1.0 - confidence) / 2.0
+    lo, hi = (np.quantile(ok, [a, 1.0 - a]) if ok.size >= 10 else (np.nan, np.nan))
+    return {"estimate": est, "low": float(lo), "high": float(hi), "n": int(k),
+            "n_resamples": int(vals.size), "n_failed": int(vals.size - ok.size),
+            "confidence": float(confidence), "method": "percentile"}
+
+
+def diff_ci(x, y, confidence: float = 0.95, n_resamples: int = 9999, seed: int = 0) -> dict:
+    """mean(x) - mean(y) of two independent sets of per-run values (NaN dropped) with a
+    percentile bootstrap interval (scipy.stats.bootstrap, each set resampled on its own).
+    Fewer than 2 values in a set: the interval is NaN. Returns dict estimate, low, high, n_x,
+    n_y, confidence."""
+    from scipy import stats as _sst
+    x = np.asarray(x, dtype=float).ravel()
+    y = np.asarray(y, dtype=float).ravel()
+    x, y = x[np.isfinite(x)], y[np.isfinite(y)]
+    est = float(x.mean() - y.mean()) if x.size and y.size else np.nan
+    out = {"estimate": est, "low": np.nan, "high": np.nan, "n_x": int(x.size), "n_y": int(y.size),
+           "confidence": float(confidence)}
+    if x.size < 2 or y.size < 2:
+        return out
+    if np.ptp(x) == 0 and np.ptp(y) == 0:
+        out.update(low=est, high=est)
+        return out
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        res = _sst.bootstrap((x, y), lambda a, b: np.mean(a) - np.mean(b), paired=False,
+                             confidence_level=confidence, n_resamples=n_resamples,
+                             method="percentile", vectorized=False,
+                             rng=np.random.default_rng(seed))
+    out.update(low=float(res.confidence_interval.low), high=float(res.confidence_interval.high))
+    return out
