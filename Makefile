@@ -38,7 +38,9 @@ test-fast: setup
 # writes figures/PRESET/. SET (configuration keys, a new ensemble) and NB (papermill parameters,
 # e.g. NB="-p lost_gap 0.0001") need VARIANT=name: the variant's runs go to data/PRESET-VARIANT/
 # (with NB alone, links to the preset's runs) and its figures to figures/VARIANT/
-# (figures/PRESET/VARIANT/ for another preset), leaving the default figures untouched.
+# (figures/PRESET/VARIANT/ for another preset), leaving the default figures untouched. A name in
+# NB that none of the notebooks to run declares stops make before anything runs, naming it
+# (tiltpile.figures.parameters); each notebook gets the parameters it declares.
 #
 # Records (`tiltpile record`, docs/cli.md): one small file per finished run, RECORDS/run_SSSS.npz
 # (RECORDS default: FIGURES/records/; a variant with NB alone reads its preset's), holding what the
@@ -106,7 +108,7 @@ FIG_JSON := $(patsubst notebooks/%.ipynb,$(FIGURES)/%.json,$(NOTEBOOKS))
 # imports no other figure's module (shared helpers live in data.py, style.py, snapshot.py), save
 # the preparation study, which is Fig. 2's computation on several ensembles.
 # tests/workflow/test_build_graph.py checks these lists against the imports.
-ANALYSIS := $(wildcard src/tiltpile/analysis/*.py)
+ANALYSIS := $(wildcard src/tiltpile/analysis/*.py src/tiltpile/analysis/*/*.py)
 FIG_COMMON := $(wildcard src/tiltpile/__init__.py src/tiltpile/figures/__init__.py \
                          src/tiltpile/figures/style.py src/tiltpile/figures/data.py \
                          src/tiltpile/record.py src/tiltpile/store.py) \
@@ -131,7 +133,7 @@ figures: $(FIG_JSON) $(REPORT) $(DIAGNOSTICS)
 
 # The runs and their observables. Always checked (the ensemble skips finished runs); the stamp
 # lists every run file's name, size and time and changes only when a run does.
-$(DATA)/.runs: FORCE | $(STAMP)
+$(DATA)/.runs: FORCE | $(STAMP) check-nb
 	@test -n "$(RUNS)" || { echo "unknown PRESET=$(PRESET): give RUNS=M"; exit 2; }
 ifeq ($(strip $(SET)),)
 	$(PY) -m tiltpile ensemble --preset $(PRESET) --runs $(RUNS) --out $(BASE_DATA) $(ENSEMBLE_ARGS)
@@ -150,7 +152,7 @@ endif
 
 # The records instead of the runs (FROM_RECORDS): always checked; the stamp lists every record's
 # SHA-256 and changes only when a record does.
-$(EXECUTED)/.records: FORCE
+$(EXECUTED)/.records: FORCE | check-nb
 	@mkdir -p $(@D)
 	@ls $(RECORDS)/run_*.npz > /dev/null 2>&1 || { echo "no records run_*.npz in $(RECORDS): write them with \
 	  'make records PRESET=$(PRESET) DATA=/path/to/runs'"; exit 2; }
@@ -161,21 +163,37 @@ $(EXECUTED)/.records: FORCE
 records: | $(STAMP)
 	$(PY) -m tiltpile record $(DATA) --out $(RECORDS) $(if $(WORKERS),--workers $(WORKERS))
 
-# the notebook parameters of this build, as a file the figures depend on (beside the executed
-# notebooks, which git ignores)
-PARAMETERS := $(EXECUTED)/.notebook-parameters
-$(PARAMETERS): FORCE
+# NB, checked before anything runs: every name must be a parameter of a notebook this invocation
+# executes (those of the figure targets named, the preparation study's, or every figure's). Then
+# per notebook, the parameters of NB it declares, as the YAML file papermill reads (-f), beside the
+# executed notebooks (git ignores them); its first line names the data and preset, so that the
+# file, and the figure after it, changes only when what the notebook is given does.
+NB_NOTEBOOKS := $(sort $(patsubst $(FIGURES)/%.json,notebooks/%.ipynb,$(filter $(FIG_JSON),$(MAKECMDGOALS))) \
+                       $(if $(filter preparation,$(MAKECMDGOALS)),notebooks/preparation.ipynb) \
+                       $(if $(filter figures $(REPORT),$(MAKECMDGOALS)),$(NOTEBOOKS)))
+ifneq ($(strip $(NB)),)
+ifeq ($(strip $(NB_NOTEBOOKS)),)
+$(error NB: none of the goals ($(or $(MAKECMDGOALS),the default)) executes a notebook; NB applies to figures, a figure's JSON and preparation)
+endif
+endif
+.PHONY: check-nb
+check-nb: | $(STAMP)
+ifneq ($(strip $(NB)),)
+	@$(PY) -m tiltpile.figures.parameters check $(NB_NOTEBOOKS) -- $(NB)
+endif
+$(EXECUTED)/%.parameters.yaml: FORCE | $(STAMP) check-nb
 	@mkdir -p $(@D)
-	@echo 'data_dir=$(FIG_DATA) preset=$(PRESET) $(NB)' > $@.tmp; $(call update_if_changed,$@)
+	@$(PY) -m tiltpile.figures.parameters select notebooks/$*.ipynb \
+	  --note 'data_dir=$(FIG_DATA) preset=$(PRESET)' -- $(NB) > $@.tmp && $(call update_if_changed,$@)
 
 # one target per figure: notebooks/figN_<name>.ipynb with src/tiltpile/figures/figN.py
 $(FIG_JSON): $(FIGURES)/%.json: notebooks/%.ipynb src/tiltpile/figures/$$(call fig_module,$$*).py \
-                   $$(FIG_USES_$$(call fig_module,$$*)) $(FIG_COMMON) $(FIG_INPUT) $(PARAMETERS) \
-                   | $(STAMP)
+                   $$(FIG_USES_$$(call fig_module,$$*)) $(FIG_COMMON) $(FIG_INPUT) \
+                   $(EXECUTED)/%.parameters.yaml | $(STAMP)
 	@mkdir -p $(EXECUTED) $(FIGURES)
 	@echo "papermill $< -> $(EXECUTED)/$*.ipynb"
 	@$(PY) -m papermill --kernel tiltpile --cwd $(CURDIR) --no-progress-bar $< $(EXECUTED)/$*.ipynb \
-	  -p data_dir $(FIG_DATA) -p preset $(PRESET) -p figures_dir $(FIGURES) $(NB) \
+	  -f $(EXECUTED)/$*.parameters.yaml -p data_dir $(FIG_DATA) -p preset $(PRESET) -p figures_dir $(FIGURES) \
 	  || { echo "papermill failed: $< (output notebook: $(EXECUTED)/$*.ipynb)"; exit 1; }
 	@test -f $@ || { echo "$< did not write $@"; exit 1; }
 	@touch $@
@@ -214,7 +232,8 @@ clean-data:
 # (`tiltpile repose`, redone when a run file is newer); then notebooks/preparation.ipynb on them
 # (the first history is the reference, normally fresh piles) into
 # PREP_FIGURES/preparation.{png,pdf,json}. PREP_DIRS="dir ..." instead names existing ensembles
-# and runs nothing. `make zcount` charts <z> by counting rule on the same ensembles
+# and runs nothing. NB="-p name value ..." with VARIANT=V passes analysis parameters to the
+# notebook, writing figures/V/ (PREP_FIGURES) instead. `make zcount` charts <z> by counting rule on the same ensembles
 # (`tiltpile zcount`, PREP_FIGURES/zcount.{png,json}). About 3.5 hours on two cores for the five
 # histories (a cycled run costs 2.6-6 times the sweeps of a fresh one).
 PREP_ROOT ?= data/preparation
@@ -231,8 +250,13 @@ PREP_SET_cyc16r10 := $(PREP_SET_cyc16) protocol.pretilt_per_step_deg=0.02
 PREP_GIVEN := $(PREP_DIRS)
 PREP_DIRS ?= $(foreach h,$(PREP_HISTORIES),$(PREP_ROOT)/$(h))
 PREP_LABELS ?=
-PREP_FIGURES ?= figures
-PREP_EXECUTED := notebooks/executed/preparation
+PREP_FIGURES ?= figures$(if $(strip $(VARIANT)),/$(VARIANT))
+PREP_EXECUTED := notebooks/executed/preparation$(if $(strip $(VARIANT)),-$(VARIANT))
+ifneq ($(strip $(SET)),)
+ifneq ($(filter preparation preparation-runs zcount,$(MAKECMDGOALS)),)
+$(error SET does not apply to the preparation study: its ensembles are set by PREP_SET_<history>)
+endif
+endif
 prep_comma := ,
 prep_empty :=
 prep_space := $(prep_empty) $(prep_empty)
@@ -245,7 +269,7 @@ ZCOUNT_CODE := $(wildcard src/tiltpile/__init__.py src/tiltpile/figures/__init__
                           src/tiltpile/record.py src/tiltpile/store.py src/tiltpile/cli/zcount.py) \
                $(filter-out %/ensemble_data.py %/structure.py,$(ANALYSIS))
 .PHONY: preparation preparation-runs zcount
-preparation-runs: | $(STAMP)
+preparation-runs: | $(STAMP) check-nb
 ifeq ($(strip $(PREP_GIVEN)),)
 	@$(foreach h,$(PREP_HISTORIES),\
 	  $(PY) -m tiltpile ensemble --preset default --runs $(PREP_RUNS) --out $(PREP_ROOT)/$(h) \
@@ -262,9 +286,10 @@ $(PREP_EXECUTED)/.inputs: FORCE | preparation-runs
 	@mkdir -p $(@D)
 	@for d in $(PREP_DIRS); do stat -L -c '%n %s %Y' $$d/run_*.h5 $$(ls $$d/repose.json 2> /dev/null) \
 	  2> /dev/null; done > $@.tmp; $(call update_if_changed,$@)
-$(PREP_EXECUTED)/.parameters: FORCE
+$(PREP_EXECUTED)/preparation.parameters.yaml: FORCE | $(STAMP) check-nb
 	@mkdir -p $(@D)
-	@echo '$(PREP_PARAMS)' > $@.tmp; $(call update_if_changed,$@)
+	@$(PY) -m tiltpile.figures.parameters select notebooks/preparation.ipynb \
+	  --note '$(PREP_PARAMS)' -- $(NB) > $@.tmp && $(call update_if_changed,$@)
 
 # The study and the <z> chart are rebuilt when their code, notebook, parameters or inputs change
 # (or their output is missing); .executed and .zcount stand for PREP_FIGURES/preparation.json and
@@ -272,12 +297,12 @@ $(PREP_EXECUTED)/.parameters: FORCE
 preparation: $(PREP_EXECUTED)/.executed
 $(PREP_EXECUTED)/.executed: notebooks/preparation.ipynb src/tiltpile/figures/preparation.py \
                             $(FIG_USES_preparation) $(FIG_COMMON) $(PREP_EXECUTED)/.inputs \
-                            $(PREP_EXECUTED)/.parameters \
+                            $(PREP_EXECUTED)/preparation.parameters.yaml \
                             $(if $(wildcard $(PREP_FIGURES)/preparation.json),,FORCE) | $(STAMP)
 	@mkdir -p $(PREP_FIGURES)
 	@echo "papermill notebooks/preparation.ipynb -> $(PREP_EXECUTED)/preparation.ipynb"
 	@$(PY) -m papermill --kernel tiltpile --cwd $(CURDIR) --no-progress-bar notebooks/preparation.ipynb \
-	  $(PREP_EXECUTED)/preparation.ipynb -y '$(PREP_PARAMS)' \
+	  $(PREP_EXECUTED)/preparation.ipynb -f $(PREP_EXECUTED)/preparation.parameters.yaml -y '$(PREP_PARAMS)' \
 	  || { echo "papermill failed: notebooks/preparation.ipynb (output notebook: $(PREP_EXECUTED)/preparation.ipynb)"; exit 1; }
 	@test -f $(PREP_FIGURES)/preparation.json || { echo "notebooks/preparation.ipynb did not write $(PREP_FIGURES)/preparation.json"; exit 1; }
 	@touch $@

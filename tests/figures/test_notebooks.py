@@ -17,7 +17,9 @@ there.
 
 The completeness test checks the contract of ``notebooks/``: one notebook per figure of the paper,
 each with a header naming its figure and the paper, a ``parameters`` cell, the tiltpile kernel and
-no stored outputs, and each exercised here.
+no stored outputs, and each exercised here. Every analysis parameter a figure depends on is a
+parameter of its notebook (and of the preparation study's) at its default value, and reaches the
+figure: a changed one is computed with and recorded in the JSON.
 """
 
 from __future__ import annotations
@@ -83,6 +85,7 @@ def test_figure_notebook(nb, smoke_ensemble, tmp_path, num_regression, data_regr
     doc = json.loads((tmp_path / f"{stem}.json").read_text())
     assert doc["figure"] == stem
     assert doc["preset"] == "smoke" and doc["n_runs"] == len(SEEDS) and doc["seeds"] == SEEDS
+    assert doc["analysis"] == {"cutoff": 0.02, "lost_gap": None}   # the defaults: only these named
     flat = flatten(doc["numbers"])
     assert flat, f"{stem} reports no numbers"
     numeric = {k: v for k, v in flat.items()
@@ -131,3 +134,84 @@ def test_notebook_contract(nb):
     code = "\n".join(c.source for c in book.cells if c.cell_type == "code")
     assert f"fig{k}" in code and "style.save(" in code
     assert nb.stem in code, f"{nb.name} must save its figure as {nb.stem}"
+
+
+# -- the analysis parameters reach the figures -------------------------------------------------------
+
+def _parameters(nb: Path) -> dict:
+    """{name: value} of a notebook's parameters cell (literal values)."""
+    import ast
+
+    book = nbformat.read(nb, as_version=4)
+    cell = next(c for c in book.cells if "parameters" in c.get("metadata", {}).get("tags", []))
+    out = {}
+    for node in ast.parse(cell.source).body:
+        assert isinstance(node, ast.Assign) and len(node.targets) == 1, f"{nb.name}: {ast.unparse(node)}"
+        out[node.targets[0].id] = ast.literal_eval(node.value)
+    return out
+
+
+WITH_PREPARATION = NOTEBOOKS + [NOTEBOOK_DIR / "preparation.ipynb"]
+# the figures that read the per-run table (the large slide: analysis.run_table): Fig. 2 and the
+# preparation study, which is Fig. 2's computation on several ensembles
+RUN_TABLE_READERS = {"fig2_avalanche_criterion", "preparation"}
+
+
+def test_only_the_declared_figures_read_the_per_run_table():
+    from tiltpile.analysis import observables
+
+    src = ROOT / "src" / "tiltpile" / "figures"
+    readers = {p.stem for p in src.glob("*.py")
+               if any(k in p.read_text() for k in (*observables.RUN_TABLE_PARAMS, "run_table"))}
+    assert readers == {"fig2", "preparation"}
+
+
+@pytest.mark.parametrize("nb", WITH_PREPARATION, ids=[p.stem for p in WITH_PREPARATION])
+def test_every_analysis_parameter_is_a_notebook_parameter(nb):
+    """Every parameter of the tables (all figures read them) and, for the figures that read the
+    per-run table, its parameters too, declared at the analysis default and passed on; and every
+    parameter of the cell is used by the notebook's code."""
+    from tiltpile.analysis import DEFAULT_PARAMS, observables
+
+    import papermill
+
+    params = _parameters(nb)
+    assert list(papermill.inspect_notebook(str(nb))) == list(params), \
+        f"{nb.name}: papermill does not read every parameter (one '=' per line, comments included)"
+    wanted = {k for k in DEFAULT_PARAMS if k not in observables.RUN_TABLE_PARAMS}
+    if nb.stem in RUN_TABLE_READERS:
+        wanted |= set(observables.RUN_TABLE_PARAMS)
+    missing = sorted(wanted - set(params))
+    assert not missing, f"{nb.name} does not pass {missing} to the analysis"
+    for k in wanted:
+        assert params[k] == DEFAULT_PARAMS[k] and type(params[k]) is type(DEFAULT_PARAMS[k]), \
+            f"{nb.name}: {k} = {params[k]!r}, the analysis default is {DEFAULT_PARAMS[k]!r}"
+    book = nbformat.read(nb, as_version=4)
+    code = "\n".join(c.source for c in book.cells
+                     if c.cell_type == "code" and "parameters" not in c.get("metadata", {}).get("tags", []))
+    for k in sorted(wanted):
+        assert re.search(rf"\b{k}={k}\b", code), f"{nb.name} declares {k} but does not pass it on"
+    unused = [k for k in params if not re.search(rf"\b{k}\b", code)]
+    assert not unused, f"{nb.name}: parameters its code never reads: {unused}"
+
+
+@pytest.mark.slow
+def test_a_changed_analysis_parameter_reaches_the_figure(smoke_ensemble, tmp_path):
+    """-p eps 0.01: the figure is computed with it (its numbers differ from the defaults') and
+    its JSON says so."""
+    import papermill as pm
+
+    from tiltpile.figures import data, fig4, style
+
+    nb = NOTEBOOK_DIR / "fig4_cluster_isostaticity.ipynb"
+    pm.execute_notebook(str(nb), str(tmp_path / "executed.ipynb"), kernel_name="tiltpile",
+                        cwd=str(ROOT), progress_bar=False, log_output=False,
+                        parameters={"data_dir": str(smoke_ensemble), "preset": "smoke",
+                                    "figures_dir": str(tmp_path), "eps": 0.01})
+    doc = json.loads((tmp_path / f"{nb.stem}.json").read_text())
+    assert doc["analysis"] == {"cutoff": 0.02, "eps": 0.01, "lost_gap": None}
+    with_eps = flatten(doc["numbers"])
+    assert with_eps == flatten(style.jsonable(fig4.compute(data.load(smoke_ensemble, "smoke",
+                                                                     eps=0.01))[0]))
+    default = flatten(style.jsonable(fig4.compute(data.load(smoke_ensemble, "smoke"))[0]))
+    assert with_eps.keys() == default.keys() and with_eps != default

@@ -116,8 +116,9 @@ def test_figure_modules_import_no_other_figure_but_through_the_declared_ones():
 
 # -- the scratch tree and make -n -------------------------------------------------------------------
 
-OLD_STAMPS = ["data/default/.runs", "notebooks/executed/default/.notebook-parameters",
-              "notebooks/executed/preparation/.inputs", "notebooks/executed/preparation/.parameters"]
+OLD_STAMPS = (["data/default/.runs", "notebooks/executed/preparation/.inputs",
+               "notebooks/executed/preparation/preparation.parameters.yaml"]
+              + [f"notebooks/executed/default/{nb.stem}.parameters.yaml" for nb in FIG_NOTEBOOKS])
 PLAN_ARGS = ["figures", "preparation", "zcount", "PREP_DIRS=data/prep"]
 
 
@@ -183,18 +184,19 @@ def _expected(rel: Path) -> set[str]:
     return want
 
 
-EDITABLE = sorted({p for files in NEEDS.values() for p in files}
-                  | {Path("src/tiltpile/figures/records.py"), Path("src/tiltpile/sim/step.py"),
-                     Path("src/tiltpile/view/movie.py"), Path("src/tiltpile/bench/timing.py"),
-                     Path("src/tiltpile/cli/simulate.py"), Path("notebooks/run_diagnostics.ipynb")})
+EDITABLE = sorted({p.relative_to(ROOT) for p in (SRC / "tiltpile").rglob("*.py")}
+                  | {p.relative_to(ROOT) for p in (ROOT / "notebooks").glob("*.ipynb")})
+USED = {p for files in NEEDS.values() for p in files}
 
 
 @pytest.mark.parametrize("rel", EDITABLE, ids=[str(p) for p in EDITABLE])
 def test_an_edit_rebuilds_exactly_what_depends_on_it(tree, rel):
-    if rel.name == "run_diagnostics.ipynb":      # rebuilds only its own pictures
-        assert _plan(tree, rel) == set()
+    plan = _plan(tree, rel)
+    if rel.parts[:3] == ("src", "tiltpile", "analysis") and rel not in USED:
+        # an analysis module no target imports (yet) counts as the analysis: the figures rebuild
+        assert {nb.stem for nb in FIG_NOTEBOOKS} <= plan, f"editing {rel}"
         return
-    assert _plan(tree, rel) == _expected(rel), f"editing {rel}"
+    assert plan == _expected(rel), f"editing {rel}"
 
 
 def test_the_report_rebuilds_when_any_json_it_reads_changes(tree):
@@ -213,3 +215,61 @@ def test_a_missing_study_output_is_rebuilt(tree):
         assert _plan(tree) == {"zcount"}
     finally:
         (tree / "figures/zcount.json.away").rename(tree / "figures/zcount.json")
+
+
+# -- notebook parameters (NB) -------------------------------------------------------------------------
+
+def _files(d: Path) -> dict:
+    return {p: p.stat().st_mtime_ns for p in d.rglob("*") if p.is_file()}
+
+
+def _make(tree: Path, *args) -> subprocess.CompletedProcess:
+    import sys
+
+    return subprocess.run(["make", f"PY={sys.executable}", *args], cwd=tree, capture_output=True,
+                          text=True, timeout=300)
+
+
+@pytest.mark.parametrize("goal, nb, named", [
+    ("figures", "-p epss 0.01", "epss"),                                  # a typo
+    ("figures/t/fig5_cluster_sizes.json", "-p slide_ke 0.001", "slide_ke"),  # Fig. 5 does not read it
+    ("figures", "-p data_dir /tmp -p eps 0.01", "data_dir"),              # make sets it
+    ("preparation", "-p ke_factor 3", "ke_factor"),                       # a Fig. 2 parameter
+    ("figures", "--kernel python3", "--kernel"),                          # not a parameter
+])
+def test_a_notebook_parameter_no_notebook_reads_stops_make_before_anything_runs(tree, goal, nb, named):
+    before = _files(tree)
+    r = _make(tree, goal, "VARIANT=t", f"NB={nb}", "PREP_DIRS=data/prep")
+    assert r.returncode != 0
+    ours = [line for line in r.stderr.splitlines() if named in line and not line.startswith("make")]
+    assert len(ours) == 1 and ours[0].startswith("NB"), r.stderr
+    assert "ensemble" not in r.stdout and "papermill" not in r.stdout
+    assert _files(tree) == before
+
+
+def test_nb_for_a_goal_without_notebooks_is_an_error(tree):
+    r = _make(tree, "zcount", "VARIANT=t", "NB=-p eps 0.01", "PREP_DIRS=data/prep")
+    assert r.returncode != 0 and "NB: none of the goals (zcount)" in r.stderr
+
+
+def test_each_notebook_gets_the_parameters_it_declares(tree):
+    """make -n: the check first, then per figure a parameters file that papermill reads (-f),
+    written by `select` with what that notebook declares; NB itself goes to no papermill."""
+    import sys
+
+    r = subprocess.run(["make", "-n", "figures", "VARIANT=t", "NB=-p eps 0.01 -p ke_factor 3"],
+                       cwd=tree, capture_output=True, text=True, timeout=120)
+    assert r.returncode == 0, r.stderr
+    lines = r.stdout.splitlines()
+    assert "tiltpile.figures.parameters check notebooks/fig1_isostaticity.ipynb" in lines[0]
+    runs = [k for k, line in enumerate(lines) if "-m papermill" in line]
+    assert len(runs) == len(FIG_NOTEBOOKS) + 1          # and run_diagnostics
+    for nb in FIG_NOTEBOOKS:
+        k = next(k for k in runs if f"{nb.stem}.ipynb" in lines[k])
+        assert f"-f notebooks/executed/default-t/{nb.stem}.parameters.yaml" in lines[k + 1]
+    assert not any("ke_factor" in lines[k] + lines[k + 1] for k in runs)
+    out = subprocess.run([sys.executable, "-m", "tiltpile.figures.parameters", "select",
+                          str(ROOT / "notebooks/fig5_cluster_sizes.ipynb"), "--note", "x",
+                          "--", "-p", "eps", "0.01", "-p", "ke_factor", "3"],
+                         capture_output=True, text=True, check=True).stdout
+    assert out == "# x\neps: 0.01\n"

@@ -3,8 +3,9 @@ and what several figures read from them alike.
 
 :class:`Ensemble` and :func:`load_ensemble` live in :mod:`tiltpile.analysis.ensemble_data` (the
 measurement studies use them too); they are re-exported here for the notebooks.
-:func:`analysis_params` gives the parameters an ensemble's tables were computed with,
-:func:`per_run_quiet` the per-run means over quiet frames (Fig. 2 and the preparation study).
+:func:`load` is what the notebooks call: :func:`load_ensemble` with every analysis parameter the
+notebook declares. :func:`analysis_params` gives the parameters an ensemble's tables were computed
+with, :func:`per_run_quiet` the per-run means over quiet frames (Fig. 2 and the preparation study).
 """
 
 from __future__ import annotations
@@ -15,7 +16,27 @@ import pandas as pd
 from tiltpile.analysis import DEFAULT_PARAMS
 from tiltpile.analysis.ensemble_data import Ensemble, load_ensemble
 
-__all__ = ["Ensemble", "load_ensemble", "snapshot", "analysis_params", "per_run_quiet"]
+__all__ = ["Ensemble", "load", "load_ensemble", "snapshot", "analysis_params", "per_run_quiet"]
+
+# what a figure's JSON names under "analysis" whatever their values: the lost-contact criterion
+ALWAYS_RECORDED = ("cutoff", "lost_gap")
+
+
+def load(data_dir, preset: str | None = None, **params) -> Ensemble:
+    """The ensemble of ``data_dir`` (:func:`load_ensemble`) analysed with ``params``, any of
+    :data:`tiltpile.analysis.DEFAULT_PARAMS` (TypeError for another name). Its ``meta["analysis"]``,
+    which the figure's JSON records, names ``cutoff``, ``lost_gap`` and every other parameter
+    whose value differs from its default (the others are the defaults)."""
+    unknown = sorted(set(params) - set(DEFAULT_PARAMS))
+    if unknown:
+        raise TypeError(f"unknown analysis parameter(s) {unknown}; allowed: {sorted(DEFAULT_PARAMS)}")
+    given = {k: v for k, v in params.items()
+             if k in ALWAYS_RECORDED or not _same_value(v, DEFAULT_PARAMS[k])}
+    return load_ensemble(data_dir, preset, **given)
+
+
+def _same_value(a, b) -> bool:
+    return type(a) is type(b) and a == b
 
 
 def analysis_params(ens: Ensemble) -> dict:

@@ -165,15 +165,15 @@ def check_inputs(data_dirs, labels=None) -> list[str]:
 
 
 def load(data_dirs, labels=None, **analysis_params) -> tuple[list, list[str], list[list[float]]]:
-    """The ensembles of ``data_dirs`` (:func:`tiltpile.figures.data.load_ensemble`, with
+    """The ensembles of ``data_dirs`` (:func:`tiltpile.figures.data.load`, with
     ``analysis_params``), their labels and preparation histories, after :func:`check_inputs`.
     Labels not given are derived from the run files' preparation (:func:`history_label`, with
     the history's rate when it has its own, :func:`rate_suffix`; the directory name is appended
     where two would be equal)."""
-    from .data import load_ensemble
+    from . import data
     labels = check_inputs(data_dirs, labels)
     hist = [preparation_history(d) for d in data_dirs]
-    ens = [load_ensemble(d, None, **analysis_params) for d in data_dirs]
+    ens = [data.load(d, None, **analysis_params) for d in data_dirs]
     if not labels:
         derived = [history_label(h) + (rate_suffix(e.config) if h else "")
                    for h, e in zip(hist, ens)]
