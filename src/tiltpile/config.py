@@ -8,8 +8,11 @@ sections, each a frozen dataclass whose fields carry their type and allowed rang
 ``protocol``  deposition and quasi-static tilt (what is done to the pile),
 ``health``    the limits at which a run is flagged, warned about, or stopped (``HealthConfig``).
 
-Presets ``smoke``, ``default`` and ``paper`` live in ``tiltpile/presets/*.toml``. A preset may be
-overridden by a TOML file and by ``key=value`` strings with dotted keys (``solver.dt=0.005``).
+Presets ``smoke``, ``default``, ``paper`` and ``paper-fresh`` live in ``tiltpile/presets/*.toml``.
+The fields' defaults are the ``default`` preset's values: a configuration built from nothing is
+that preset (``tests/workflow/test_config.py``), and each preset file gives what it changes,
+its scale always. A preset may be overridden by a TOML file and by ``key=value`` strings with
+dotted keys (``solver.dt=0.005``).
 Anything wrong -- an unknown section or key, a wrong type, a value out of range -- raises
 :class:`ConfigError` naming the field and the allowed values, before anything is computed or written.
 
@@ -50,10 +53,10 @@ def _f(default, **kw):
 
 @dataclass(frozen=True)
 class SceneConfig:
-    n: int = _f(400, lo=1, hi=10_000_000, doc="number of mobile grains")
+    n: int = _f(1000, lo=1, hi=10_000_000, doc="number of mobile grains")
     polydispersity: float = _f(0.2, lo=0.0, hi=1.0, hi_open=True,
                                doc="diameters uniform in [1 - p, 1 + p] (mean d = 1)")
-    box_length: float = _f(30.0, lo=2.0, lo_open=False, doc="box length L in d")
+    box_length: float = _f(40.0, lo=2.0, lo_open=False, doc="box length L in d")
     mu: float = _f(0.5, lo=0.0, doc="grain-grain (and grain-fixed-grain) friction coefficient")
     mu_wall: float = _f(0.5, lo=0.0, doc="friction coefficient of the floor and side walls")
     fill_spacing: float = _f(1.15, lo=1.0, hi=3.0,
@@ -67,7 +70,7 @@ class SolverConfig:
                     doc="NLGS stop: relative L2 change of the impulses over one sweep")
     deposition_tol: float = _f(1e-4, lo=0.0, lo_open=True, hi=1.0,
                                doc="the same during deposition (only its end state matters)")
-    max_iter: int = _f(2000, lo=1, hi=10_000_000, doc="cap on NLGS sweeps per step")
+    max_iter: int = _f(1000, lo=1, hi=10_000_000, doc="cap on NLGS sweeps per step")
     # A cap by phase, for studies: in a large slide no affordable cap converges a step. 200 is too
     # few at the default scale (the solver creates energy: docs/performance.md); off in the presets.
     max_iter_slide: int = _f(0, lo=0, hi=10_000_000,
@@ -97,9 +100,9 @@ class SolverConfig:
 
 @dataclass(frozen=True)
 class ProtocolConfig:
-    tilt_per_step_deg: float = _f(0.001, lo=0.0, lo_open=True, hi=1.0, doc="rotation of gravity per step")
-    theta_max_deg: float = _f(30.0, lo=0.0, hi=90.0, doc="final inclination")
-    frame_every: int = _f(50, lo=1, hi=10_000_000, doc="steps between frames")
+    tilt_per_step_deg: float = _f(0.002, lo=0.0, lo_open=True, hi=1.0, doc="rotation of gravity per step")
+    theta_max_deg: float = _f(22.0, lo=0.0, hi=90.0, doc="final inclination")
+    frame_every: int = _f(25, lo=1, hi=10_000_000, doc="steps between frames")
     # above the kinetic-energy floor an NLGS stopped at deposition_tol leaves in a pile
     # (docs/performance.md)
     rest_ke: float = _f(1e-6, lo=0.0, lo_open=True,
@@ -433,7 +436,7 @@ def preset_dict(name: str) -> dict[str, Any]:
     return _merge(preset_dict(base), data) if base is not None else data
 
 
-def load(preset: str = "smoke", config_file: str | Path | None = None,
+def load(preset: str, config_file: str | Path | None = None,
          overrides: list[str] | tuple[str, ...] = ()) -> Config:
     """Preset, then config file, then ``key=value`` overrides; validated once at the end."""
     data = preset_dict(preset)

@@ -107,3 +107,51 @@ def test_a_history_given_later_replaces_the_presets_in_either_form(tmp_path):
     f.write_text("[protocol]\npretilt_deg = [5.0, 0.0]\ncycles = 1\ntheta_rev_deg = 3.0\n")
     with pytest.raises(ConfigError, match="both give a history"):
         config.load("default", f)
+
+
+# -- the preset on the command line -----------------------------------------------------------------
+
+@pytest.mark.parametrize("command, extra", [("simulate", ["--seed", "1", "--out", "run.h5"]),
+                                            ("ensemble", ["--runs", "2", "--out", "runs"])])
+def test_commands_that_make_runs_require_a_preset(command, extra, tmp_path, monkeypatch, capsys):
+    """No silent default scale: without --preset the command stops (exit 2) naming it, before
+    anything is written; --help says it is required and what each preset is."""
+    from tiltpile.cli import build_parser, main
+
+    monkeypatch.chdir(tmp_path)
+    with pytest.raises(SystemExit) as e:
+        main([command, *extra])
+    assert e.value.code == 2
+    assert "the following arguments are required: --preset" in capsys.readouterr().err
+    assert list(tmp_path.iterdir()) == []
+    helptext = " ".join(build_parser()._subparsers._group_actions[0].choices[command]
+                        .format_help().split())
+    assert "(required)" in helptext and "paper 4000 grains" in helptext
+
+
+def test_bench_says_which_preset_it_measures(monkeypatch, capsys):
+    """tiltpile bench keeps its measurement default (paper-fresh), shows it in --help and prints
+    the preset on stderr before measuring, saying whether it is the default."""
+    import tiltpile.bench.timing as timing
+    from tiltpile.cli import build_parser, main
+
+    seen = []
+    monkeypatch.setattr(timing, "time_pile", lambda **kw: seen.append(kw["preset"]) or {"preset": kw["preset"]})
+    assert main(["bench", "--json"]) == 0
+    out, err = capsys.readouterr()
+    assert err.splitlines()[0] == "tiltpile bench: preset paper-fresh (the default; --preset to choose)"
+    assert seen == ["paper-fresh"] and '"preset": "paper-fresh"' in out
+    assert main(["bench", "--json", "--preset", "smoke"]) == 0
+    assert capsys.readouterr().err.splitlines()[0] == "tiltpile bench: preset smoke"
+    assert seen[-1] == "smoke"
+    helptext = " ".join(build_parser()._subparsers._group_actions[0].choices["bench"]
+                        .format_help().split())
+    assert "(default: paper-fresh)" in helptext
+
+
+def test_the_configuration_defaults_are_the_default_preset():
+    """config.py's dataclass defaults are the default preset's values (a preset file gives only
+    what it changes; every preset gives its scale explicitly), so a configuration built from
+    nothing is the default preset, hash and all."""
+    assert config.from_dict({}) == config.load("default")
+    assert config.from_dict({}).hash() == config.load("default").hash()

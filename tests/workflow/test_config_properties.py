@@ -70,8 +70,8 @@ def test_a_refused_override_writes_nothing(tmp_path_factory, monkeypatch, capsys
     monkeypatch.setattr(tiltpile.runner, "simulate", lambda *a, **k: calls.append(a) or {})
     d = tmp_path_factory.mktemp("out")
     capsys.readouterr()
-    rc = main(["simulate", "--set", f"{section}.{key}={text}", "--seed", "1", "--out", str(d / "run.h5"),
-               "--quiet"])
+    rc = main(["simulate", "--preset", "smoke", "--set", f"{section}.{key}={text}", "--seed", "1",
+               "--out", str(d / "run.h5"), "--quiet"])
     err = capsys.readouterr().err.strip().splitlines()
     if rc == 2:
         assert len(err) == 1 and _named(err[0], section, key), err

@@ -29,7 +29,7 @@ from tiltpile.sim.protocol import SimulationError
 from tiltpile.store import checkpoint_path, lock_path, open_run, part_path
 
 TINY = ["scene.n=60", "scene.box_length=10.0", "protocol.theta_max_deg=2.0", "protocol.checkpoint_every=5"]
-SETS = [a for t in TINY for a in ("--set", t)]
+SETS = ["--preset", "smoke", *[a for t in TINY for a in ("--set", t)]]
 ENV = dict(os.environ, NUMBA_CACHE_DIR=os.environ.get("NUMBA_CACHE_DIR", str(
     Path(__file__).resolve().parents[2] / ".venv" / "numba-cache")))
 
@@ -413,7 +413,8 @@ def test_read_only_directory_is_refused(tmp_path, capsys):
 
 def test_health_stop_is_one_line_and_promises_no_missing_checkpoint(tmp_path, capsys):
     out = tmp_path / "run.h5"
-    rc, lines = _cli(capsys, "simulate", "--set", "scene.box_length=2.8", "--seed", "1", "--out", out, "--quiet")
+    rc, lines = _cli(capsys, "simulate", "--preset", "smoke", "--set", "scene.box_length=2.8", "--seed", "1",
+                     "--out", out, "--quiet")
     assert rc == 1
     _one_error_line(lines, "health.overlap_stop exceeded", "Nothing was kept")
     assert "resumes it from its last checkpoint" not in lines[0]
@@ -427,7 +428,7 @@ def test_config_that_is_not_a_text_file_is_one_line(tmp_path, capsys):
     binary.write_bytes(bytes(range(256)) * 4)
     out = tmp_path / "out" / "run.h5"
     for cfg, words in ((binary, "not a text"), (tmp_path, "is a directory"), ("/dev/zero", "not a regular file")):
-        rc, lines = _cli(capsys, "simulate", "--config", cfg, "--seed", "1", "--out", out)
+        rc, lines = _cli(capsys, "simulate", "--preset", "smoke", "--config", cfg, "--seed", "1", "--out", out)
         assert rc == 2
         _one_error_line(lines, cfg, words)
     assert not (tmp_path / "out").exists()
@@ -436,7 +437,7 @@ def test_config_that_is_not_a_text_file_is_one_line(tmp_path, capsys):
 @pytest.mark.parametrize("text", [str(2**64), str(2**63), "1_0", "+5", " 5", "0x10", "-1"])
 def test_seed_must_be_plain_digits_within_range(tmp_path, capsys, text):
     with pytest.raises(SystemExit) as e:
-        main(["simulate", "--seed", text, "--out", str(tmp_path / "run.h5")])
+        main(["simulate", "--preset", "smoke", "--seed", text, "--out", str(tmp_path / "run.h5")])
     assert e.value.code == 2
     assert "seed" in capsys.readouterr().err
     assert list(tmp_path.iterdir()) == []

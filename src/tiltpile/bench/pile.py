@@ -64,7 +64,8 @@ def main(argv: list[str] | None = None) -> int:
 
     ap = argparse.ArgumentParser(prog="python -m tiltpile.bench.pile", description=main.__doc__)
     ap.add_argument("n", type=int, help="mobile grains")
-    ap.add_argument("--preset", choices=cfgmod.PRESETS, default="paper-fresh")
+    ap.add_argument("--preset", choices=cfgmod.PRESETS, default="paper-fresh",
+                    help="base configuration of the pile (default: paper-fresh)")
     ap.add_argument("--seed", type=int, default=0)
     a = ap.parse_args(argv)
     try:

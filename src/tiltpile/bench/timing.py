@@ -59,7 +59,8 @@ def main(argv: list[str] | None = None) -> int:
     ap = argparse.ArgumentParser(prog="python -m tiltpile.bench.timing", description=__doc__.splitlines()[0])
     ap.add_argument("--n", type=int, default=4000, help="mobile grains (box length scales with n)")
     ap.add_argument("--steps", type=int, default=200, help="steps to time")
-    ap.add_argument("--preset", choices=cfgmod.PRESETS, default="paper-fresh")
+    ap.add_argument("--preset", choices=cfgmod.PRESETS, default="paper-fresh",
+                    help="base configuration of the pile (default: paper-fresh)")
     ap.add_argument("--seed", type=int, default=0)
     ap.add_argument("--json", action="store_true", help="print one JSON object")
     a = ap.parse_args(argv)

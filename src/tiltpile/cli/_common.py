@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import re
+import sys
 from pathlib import Path
 
 from tiltpile import config as cfgmod
@@ -18,12 +19,36 @@ from tiltpile.paths import check_output  # noqa: F401  (re-exported for the comm
 ConfigError = cfgmod.ConfigError
 
 
-def add_config_args(p: argparse.ArgumentParser, default_preset: str = "smoke") -> None:
-    """``--preset``, ``--config FILE.toml``, ``--set SECTION.KEY=VALUE`` (repeatable)."""
-    p.add_argument("--preset", choices=cfgmod.PRESETS, default=default_preset, help="base configuration")
+def add_config_args(p: argparse.ArgumentParser, default_preset: str | None = None) -> None:
+    """``--preset``, ``--config FILE.toml``, ``--set SECTION.KEY=VALUE`` (repeatable).
+
+    ``--preset`` is required unless ``default_preset`` is given (a measurement's default, which
+    ``--help`` shows and :func:`announce_preset` prints): a command that makes runs never picks a
+    scale the user did not name."""
+    sizes = ", ".join(f"{name} {cfgmod.preset_dict(name)['scene']['n']} grains"
+                      for name in cfgmod.PRESETS)
+    if default_preset is None:
+        p.add_argument("--preset", choices=cfgmod.PRESETS, required=True,
+                       help=f"base configuration (required): {sizes}")
+    else:   # None until resolve_preset, so that a given --preset is told from the default
+        p.add_argument("--preset", choices=cfgmod.PRESETS, default=None,
+                       help=f"base configuration (default: {default_preset}): {sizes}")
+        p.set_defaults(default_preset=default_preset)
     p.add_argument("--config", type=Path, help="TOML file overriding the preset")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",
                    help="override one value, e.g. --set solver.dt=0.005 (repeatable)")
+
+
+def resolve_preset(args, command: str) -> str:
+    """``args.preset``, the command's default when none was given, saying so on stderr before the
+    work starts (one line: the preset, and whether it is the default)."""
+    if args.preset is None:
+        args.preset = args.default_preset
+        print(f"tiltpile {command}: preset {args.preset} (the default; --preset to choose)",
+              file=sys.stderr)
+    else:
+        print(f"tiltpile {command}: preset {args.preset}", file=sys.stderr)
+    return args.preset
 
 
 def load_config(args) -> cfgmod.Config:

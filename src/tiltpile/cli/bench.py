@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from tiltpile.cli._common import ConfigError, add_config_args, seed
+from tiltpile.cli._common import ConfigError, add_config_args, resolve_preset, seed
 
 
 def add_parser(sub) -> None:
@@ -30,6 +30,7 @@ def run(args) -> int:
         raise ConfigError("--quick and --parts only apply to --chart DIR")
     from tiltpile.bench.timing import print_result, time_pile
 
+    resolve_preset(args, "bench")
     result = time_pile(n=args.n, steps=args.steps, preset=args.preset, config_file=args.config,
                        overrides=args.overrides, seed=args.seed, progress=not args.json)
     print_result(result, args.json)
@@ -40,7 +41,7 @@ def _chart(args) -> int:
     """``bench --chart DIR``: the speed x accuracy chart (tiltpile.bench.chart)."""
     given = [name for name, value, default in (
         ("--n", args.n, 4000), ("--steps", args.steps, 200), ("--seed", args.seed, 0),
-        ("--set", args.overrides, []), ("--config", args.config, None), ("--preset", args.preset, "paper-fresh"))
+        ("--set", args.overrides, []), ("--config", args.config, None), ("--preset", args.preset, None))
         if value != default]
     if given:
         raise ConfigError(f"{', '.join(given)} do not apply to --chart (its scenes are fixed: "
