@@ -1,44 +1,9 @@
 """The run file: one HDF5 file per run. The only module that knows the layout.
 
-Layout (F frames, N grains including the fixed bottom row, C contacts over all frames)::
-
-    /                     attrs: tiltpile_version, seed, config (JSON text), config_hash,
-                                 box_length, jit (JSON text: numba flags), complete (bool)
-    /particles/radius     (N,)      float64  [d]
-    /particles/fixed      (N,)      bool     grains of the rough bottom row
-    /frames/step          (F,)      int64    global step (deposition steps included)
-    /frames/time          (F,)      float64  [sqrt(d/g)]
-    /frames/theta_deg     (F,)      float64  inclination of the box
-    /frames/position      (F, N, 2) float64  [d], box frame (x along the floor, y up)
-    /frames/rotation      (F, N)    float64  [rad]
-    /frames/velocity      (F, N, 2) float64  [sqrt(g d)]
-    /frames/omega         (F, N)    float64  [sqrt(g/d)]
-    /frames/iterations    (F,)      int64    NLGS sweeps of the frame's step
-    /frames/residual      (F,)      float64  final NLGS residual of the frame's step
-    /frames/ke            (F,)      float64  kinetic energy of the mobile grains [m g d]
-    /frames/max_overlap   (F,)      float64  largest overlap since the previous frame [d]
-    /frames/max_iterations(F,)      int64    most sweeps in a step since the previous frame
-    /frames/cap_hits      (F,)      int64    steps since the previous frame that hit max_iter
-    /frames/missed        (F,)      int64    steps where a grain outran the alert distance
-    /frames/energy_gain   (F,)      float64  largest per-step gain of kinetic energy beyond the work
-                                             of gravity since the previous frame [m g d]; <= 0 up
-                                             to solver error (contacts only dissipate)
-    /contacts/offset      (F+1,)    int64    contacts of frame k are rows offset[k]:offset[k+1]
-    /contacts/pair        (C, 2)    int32    grain ids (i < j); walls: -1 floor, -2 left (x = 0),
-                                             -3 right (x = L)
-    /contacts/force       (C, 2)    float64  normal, tangential force = impulse / dt [m g]
-    /contacts/status      (C,)      int8     0 open (touching, no force), 1 sticking,
-                                             2 sliding (fully mobilized, |f_t| = mu f_n)
-    /deposition           attrs: steps, time, ke_per_grain, height, max_overlap, missed
-    /preparation          attrs (only with protocol.pretilt_deg): target_deg, tilt_steps,
-                          hold_steps, ke_per_grain, one entry per leg
-    / attrs end_reason, end_theta_deg: "theta_max" or "slide" (protocol.end_ke), last frame's angle;
-            steps, sweeps, capped_steps: the whole run's time steps, NLGS sweeps and capped steps;
-            seconds, resumed_from_frame: wall time of the invocation that finished the run (-1:
-            not resumed, so the whole run)
-    /health               attrs (complete runs): the health summary of ``runner.simulate`` --
-                          counts of flagged frames and steps, worst values, and ``warnings``
-                          (JSON list of the warning texts, empty when healthy)
+Layout: ``LAYOUT`` declares every dataset (units and meaning, written with it as attributes
+``units`` and ``description``) and ``ATTRS`` the attributes of the root and of the groups that
+hold only attributes; docs/run-file.md shows both with shapes and types, and
+tests/workflow/test_run_file_doc.py checks the page and a written file against them.
 
 The file is written as ``NAME.part`` and renamed to ``NAME`` when complete, so a file with the
 final name is always whole. An interrupted ``.part`` file resumes from its checkpoint
@@ -47,23 +12,19 @@ final name is always whole. An interrupted ``.part`` file resumes from its check
 Checkpoints live in their own file, ``NAME.ckpt`` (HDF5: the simulator's full state as datasets,
 attrs ``scalars`` (JSON), ``n_frames``, ``config_hash``, ``seed`` and ``frames_digest``), written
 to a temporary name, synced and renamed, so a process killed at any moment leaves either the old
-checkpoint or the new one, never a mixture. (It used to be a group inside the ``.part`` file,
-deleted and rewritten at every checkpoint. HDF5 is not crash-safe: the new state's data could
-land in the space the old one freed while the file's last flushed metadata still described the
-old one, so a run killed during a checkpoint could resume from a state mixing two times and end
-differently -- seen once in ``test_sigkill_then_rerun_is_bit_identical``.) The ``.part`` file is
+checkpoint or the new one, never a mixture. (HDF5 is not crash-safe for data rewritten in place:
+a state rewritten inside the ``.part`` file could land in space the old one freed while the last
+flushed metadata still described the old one, and a run killed then would resume from a mixture;
+``test_sigkill_then_rerun_is_bit_identical`` kills runs at random moments.) The ``.part`` file is
 flushed and synced before the checkpoint names its frame count; ``frames_digest`` (SHA-256 over
 every frame and contact row written up to the checkpoint, in order) is checked on resume, so a
 ``.part`` file that lost or changed frames in a crash is started afresh rather than resumed.
 
-Every dataset carries a ``units`` attribute (``"1"`` for counts, ids, flags and ratios) and a
-one-line ``description`` (``LAYOUT``).
-
 One writer per run file. ``RunWriter`` (and ``runner.simulate`` around it) holds an exclusive
 ``flock`` on ``NAME.lock`` from before anything is opened or truncated until the run is finished
 or closed; a second writer is refused with ``RunBusyError`` naming the ``.part`` file the other
-process writes, and the lock file is removed by the last holder. (``h5py.File(part, "w")``
-truncated the other writer's file before HDF5's own lock refused the open.)
+process writes, and the lock file is removed by the last holder. (HDF5's own file lock is no
+guard: ``h5py.File(part, "w")`` truncates the other writer's file before that lock refuses it.)
 
 Integrity. A complete run file (root attr ``integrity = "fletcher32"``) has HDF5's Fletcher32
 checksum on every chunk of every dataset (and ``attrs_sha256``, a SHA-256 over every attribute,
@@ -124,6 +85,44 @@ LAYOUT = {
     "contacts/pair": ("1", "grain ids (i < j); walls: -1 floor, -2 left (x = 0), -3 right (x = L)"),
     "contacts/force": ("m g", "normal, tangential contact force (impulse / dt)"),
     "contacts/status": ("1", "0 open (touching, no force), 1 sticking, 2 sliding (|f_t| = mu f_n)"),
+}
+# The attributes of the root and of the groups that hold only attributes, each with its meaning
+# (docs/run-file.md); /preparation only with protocol.pretilt_deg (one entry per leg), /health
+# only in complete runs, its keys those of tiltpile.health.summarize (None here).
+ATTRS = {
+    "/": {
+        "tiltpile_version": "version of tiltpile that wrote the file",
+        "seed": "the run's seed",
+        "config": "the validated configuration (JSON text)",
+        "config_hash": "SHA-256 of the configuration's canonical JSON",
+        "box_length": "box length L [d]",
+        "jit": "the numba flags the kernels were compiled with (JSON text)",
+        "complete": "true once the run is finished",
+        "integrity": '"fletcher32": every dataset carries HDF5\'s Fletcher32 checksum',
+        "attrs_sha256": "SHA-256 over the attributes of the root and the groups (verify checks it)",
+        "end_reason": '"theta_max" (the ramp reached theta_max_deg) or "slide" (protocol.end_ke)',
+        "end_theta_deg": "tilt of the last frame [deg]",
+        "steps": "time steps of the whole run, deposition and preparation included",
+        "sweeps": "NLGS sweeps of the whole run",
+        "capped_steps": "steps of the whole run that stopped at solver.max_iter",
+        "seconds": "wall time of the invocation that finished the run [s]",
+        "resumed_from_frame": "the frame that invocation resumed from; -1: not resumed",
+    },
+    "deposition": {
+        "steps": "deposition steps",
+        "time": "simulated time of the deposition [sqrt(d/g)]",
+        "ke_per_grain": "kinetic energy per mobile grain at its end [m g d]",
+        "height": "highest grain top [d]",
+        "max_overlap": "largest overlap of any deposition step [d]",
+        "missed": "deposition steps where a grain outran the alert distance",
+    },
+    "preparation": {
+        "target_deg": "the leg's target tilt [deg]",
+        "tilt_steps": "steps tilting to it",
+        "hold_steps": "steps held there until at rest",
+        "ke_per_grain": "kinetic energy per mobile grain at the leg's end [m g d]",
+    },
+    "health": None,
 }
 # datasets that files written before they existed lack (the reader fills energy_gain with NaN)
 OPTIONAL = frozenset({"frames/energy_gain"})
