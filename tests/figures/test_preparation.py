@@ -217,6 +217,35 @@ def test_the_notebook_writes_the_json(tiny, tmp_path):
     assert doc["numbers"]["ensembles"]["prepared"]["n_runs"] == 2
 
 
+def test_make_preparation_and_zcount_end_to_end(tiny, tmp_path):
+    """docs/cli.md, "The preparation study, end to end", on existing ensembles (PREP_DIRS): the
+    study's figure, then <z>; a second make does nothing, a changed run file redoes both."""
+    import subprocess
+
+    figs, executed = tmp_path / "figs", tmp_path / "executed"
+    args = ["make", "-o", ".venv/.tiltpile-installed", f"PREP_DIRS={tiny['fresh']} {tiny['prep']}",
+            "PREP_LABELS=fresh piles|prepared", f"PREP_FIGURES={figs}", f"PREP_EXECUTED={executed}"]
+
+    def make(*goals):
+        r = subprocess.run([*args, *goals], cwd=ROOT, capture_output=True, text=True, timeout=900,
+                           env=dict(os.environ, NUMBA_CACHE_DIR=str(ROOT / ".venv" / "numba-cache")))
+        assert r.returncode == 0, r.stdout + r.stderr
+        return r.stdout
+
+    out = make("preparation", "zcount")
+    assert "papermill notebooks/preparation.ipynb" in out and "tiltpile zcount" in out
+    doc = json.loads((figs / "preparation.json").read_text())
+    assert list(doc["numbers"]["ensembles"]) == ["fresh piles", "prepared"]
+    assert (figs / "zcount.json").stat().st_size > 0
+    out = make("preparation", "zcount")
+    assert "papermill" not in out and "tiltpile zcount" not in out
+    run = tiny["prep"] / "run_0001.h5"
+    st = run.stat()
+    os.utime(run, ns=(st.st_atime_ns, st.st_mtime_ns + 1_000_000_000))
+    out = make("preparation", "zcount")
+    assert "papermill notebooks/preparation.ipynb" in out and "tiltpile zcount" in out
+
+
 # ---------------------------------------------------------------------------------------------
 # bad input
 
