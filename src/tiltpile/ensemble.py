@@ -1,8 +1,8 @@
 """Ensembles of runs on dask.distributed: resumable, reproducible, one machine or a cluster.
 
 ``run_ensemble(config, seeds, out_dir)`` runs one pile per seed into ``out_dir/run_{seed:04d}.h5``
-(``runner.simulate``'s format) and keeps a manifest ``out_dir/ensemble.json``; ``tiltpile ensemble``
-is its command line (``add_parser`` registers it, ``main`` runs it standalone)::
+(``runner.simulate``'s format) and keeps a manifest ``out_dir/ensemble.json``; its command line,
+``tiltpile ensemble``, lives in :mod:`tiltpile.cli.ensemble`::
 
     tiltpile ensemble --preset P [--config F] [--set k=v ...] --runs M [--first-seed S] --out DIR
                       [--scheduler ADDRESS] [--workers W]

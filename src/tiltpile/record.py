@@ -5,7 +5,8 @@ A run file (``store``) holds every frame of a run (~40 MB at 1000 grains, ~175 M
 4000) and is not committed; a record (~0.5 MB at 1000 grains) is, so that the figures can be
 rebuilt from a clone without the run files (``tiltpile record``; what goes in is chosen by
 :mod:`tiltpile.figures.records`, the record is read by
-:func:`tiltpile.analysis.load_ensemble` and :func:`tiltpile.figures.data.snapshot`).
+:func:`tiltpile.analysis.ensemble_data.load_ensemble` and
+:func:`tiltpile.figures.data.snapshot`).
 
 Layout: a zip of ``.npy`` members (``numpy.load`` reads it; no pickle), ``run_SSSS.npz``::
 

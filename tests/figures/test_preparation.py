@@ -1,4 +1,4 @@
-"""Preparation study (issue 16): compute() on two tiny simulated ensembles, fresh and prepared
+"""The preparation study: compute() on two tiny simulated ensembles, fresh and prepared
 (pretilt [5, -5, 0] deg), against the analysis functions run by run; labels from the run files;
 the notebook writes its JSON; bad input refused with one message. About 30 s on a loaded core.
 """

@@ -25,7 +25,7 @@ def test_run_series(tiny_run):
         np.testing.assert_allclose(s["ke_per_grain"], run.ke / (~run.fixed).sum())
     np.testing.assert_array_equal(s["z"], frames["z"])
     assert facts["max_iter"] == 1000 and facts["cutoff"] == 0.02
-    on = diagnostics.first_onsets(frames)
+    on = diagnostics.onset_summary(frames)
     assert on["theta_first_onset"].iloc[0] == frames.loc[frames["onset"], "theta_deg"].iloc[0]
 
 

@@ -1,4 +1,4 @@
-"""Property-based tests of the configuration (issue 17): any value of any field either validates
+"""Property-based tests of the configuration: any value of any field either validates
 or is refused with a message naming the field, and a refused command writes nothing."""
 
 from __future__ import annotations

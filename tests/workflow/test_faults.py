@@ -1,4 +1,4 @@
-"""Fault injection (issue 17): two writers, a killed --force rerun, damaged and mixed run files,
+"""Fault injection: two writers, a killed --force rerun, damaged and mixed run files,
 a full disk, bad paths and inputs. Each test reproduces one way to lose data or to get a wrong
 answer silently, and checks that it is now refused (one line, nothing written) or survived.
 
@@ -82,8 +82,8 @@ def _dying_append(at_frame: int):
 # -- 1. one writer per run file ---------------------------------------------------------------------
 
 def test_second_writer_is_refused_while_the_first_writes(tmp_path, tiny, ref):
-    """Issue 17.1: a second `simulate` on the same file (with or without --force) used to open the
-    .part with mode "w" and truncate it under the first writer (radius all zero)."""
+    """A second `simulate` on the same file (with or without --force) must not open the .part
+    with mode "w": that truncates it under the first writer (radius all zero)."""
     out = tmp_path / "run.h5"
     seen = []
 
@@ -180,7 +180,7 @@ def test_flipped_bit_is_found_by_verify(tmp_path, ref, capsys, dataset, coord):
 
 
 def test_flipped_position_is_refused_by_the_reader_observables_and_the_figures(tmp_path, ref, capsys):
-    """Issue 17.3: a flipped byte put a grain at x = 5.8e-182 and went on to the figures."""
+    """A flipped byte (a grain at x = 5.8e-182) must not reach the observables or the figures."""
     d = tmp_path / "ens"
     d.mkdir()
     path = d / "run_0003.h5"
@@ -201,7 +201,7 @@ def test_flipped_position_is_refused_by_the_reader_observables_and_the_figures(t
 
 
 def test_missing_dataset_is_an_error_except_the_documented_ones(tmp_path, ref, capsys):
-    """Issue 17.3: a deleted frames/theta_deg was read as NaN everywhere."""
+    """A deleted frames/theta_deg is an error naming it, not NaN everywhere."""
     path = tmp_path / "run_0003.h5"
     shutil.copy(ref, path)
     with h5py.File(path, "r+") as f:
@@ -222,7 +222,8 @@ def test_missing_dataset_is_an_error_except_the_documented_ones(tmp_path, ref, c
 
 
 def test_every_dataset_has_units_description_and_a_checksum(ref):
-    """Issue 19: self-describing run files; issue 17.3: the integrity record."""
+    """Self-describing run files (units and description on every dataset) and the integrity
+    record."""
     with h5py.File(ref, "r") as f:
         assert f.attrs["integrity"] == store.INTEGRITY
         names = []
@@ -236,7 +237,7 @@ def test_every_dataset_has_units_description_and_a_checksum(ref):
 
 
 def test_ensemble_moves_a_damaged_run_aside_and_runs_it_again(tmp_path, tiny, ref, capsys):
-    """Issue 17.3: `tiltpile ensemble` called a damaged file done."""
+    """`tiltpile ensemble` does not call a damaged file done."""
     from tiltpile.ensemble import run_ensemble
 
     d = tmp_path / "ens"

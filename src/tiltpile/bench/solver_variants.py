@@ -2,7 +2,7 @@
 
 Usage: python -m tiltpile.bench.solver_variants N STEPS [EVAL_EVERY] [variant ...]
   variant = sweep:relax[:tol[:slop]], e.g. random:1  forward:1.6  forward:1.6:3e-7
-  random:1:1e-6:0 (plain random NLGS with the plain gap term: the reference of issue 6)
+  random:1:1e-6:0 (plain random NLGS with the plain gap term: the speed reference)
   pile_slop=S (anywhere among the variants): deposit the pile with solver.overlap_slop = S
   (default: the preset's). Compare schemes on piles deposited with their own slop: a pile
   deposited with the slop holds overlaps up to 1e-6 d, which slop 0 then pushes out at once.

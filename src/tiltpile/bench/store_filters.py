@@ -1,4 +1,4 @@
-"""Cost of the run file's integrity record and of compression (issues 17 and 19).
+"""Cost of the run file's integrity record and of compression.
 
 Rewrites the frames of an existing run file through ``store.RunWriter`` with different HDF5
 filters and reports, per variant, the file size, the writer's time (all appends, checkpoints
@@ -8,7 +8,7 @@ velocity, omega and contacts of every frame)::
 
     python -m tiltpile.bench.store_filters RUN.h5 [--repeat 3]
 
-Variants: ``plain`` (no filter: the writer before issue 17), ``fletcher32`` (HDF5's checksum on
+Variants: ``plain`` (no filter), ``fletcher32`` (HDF5's checksum on
 every chunk, what the writer does now), ``sha256`` (plain, plus a SHA-256 digest per dataset fed
 at every append: the alternative integrity record), and Fletcher32 with shuffle + ``lzf`` or
 ``gzip`` (levels 1 and 4). The simulator's time is not included: compare with a run's

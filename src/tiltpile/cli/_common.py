@@ -23,7 +23,7 @@ def add_config_args(p: argparse.ArgumentParser, default_preset: str | None = Non
     """``--preset``, ``--config FILE.toml``, ``--set SECTION.KEY=VALUE`` (repeatable).
 
     ``--preset`` is required unless ``default_preset`` is given (a measurement's default, which
-    ``--help`` shows and :func:`announce_preset` prints): a command that makes runs never picks a
+    ``--help`` shows and :func:`resolve_preset` prints): a command that makes runs never picks a
     scale the user did not name."""
     sizes = ", ".join(f"{name} {cfgmod.preset_dict(name)['scene']['n']} grains"
                       for name in cfgmod.PRESETS)

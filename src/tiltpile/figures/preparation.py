@@ -1,4 +1,4 @@
-"""Preparation study (issue 16): do piles tilted before the analysed ramp fail differently?
+"""The preparation study: do piles tilted before the analysed ramp fail differently?
 
 The paper's piles had "several histories of inclination, including several back and forth
 oscillations"; ours fall fresh from a loose lattice unless ``protocol.pretilt_deg`` tilts them

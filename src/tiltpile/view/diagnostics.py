@@ -6,7 +6,7 @@ mobile grains per grain, m g d), lost_fraction (contacts active at frame k lost 
 onset, z, n_m, dz_gen (bulk, rattlers removed; :mod:`tiltpile.analysis.observables`),
 iterations (NLGS sweeps of the frame's step), max_iterations and cap_hits (the worst step and the
 steps at the iteration cap since the previous frame), residual, max_overlap, energy_gain (from the
-run file). ``first_onsets(frames)`` -- per run of an ensemble table, the tilt of the first onset.
+run file). ``onset_summary(frames)`` -- per run of an ensemble table, the tilt of the first onset.
 ``plot(series, onsets, ...)`` -- the figure.
 """
 
@@ -18,6 +18,7 @@ import numpy as np
 import pandas as pd
 
 from tiltpile.analysis import DEFAULT_PARAMS, run_observables
+from tiltpile.analysis.ensemble_data import first_onsets
 from tiltpile.store import open_run
 
 RUN_COLUMNS = ("iterations", "max_iterations", "cap_hits", "residual", "max_overlap",
@@ -43,16 +44,17 @@ def run_series(path) -> tuple[pd.DataFrame, dict]:
     return s, facts
 
 
-def first_onsets(frames: pd.DataFrame) -> pd.DataFrame:
-    """Per run of an ensemble's per-frame table: theta of its first onset (NaN: none), its
-    number of onsets and its last tilt. Columns run, theta_first_onset, n_onsets, theta_end."""
-    rows = []
-    for run, g in frames.sort_values(["run", "frame"], kind="stable").groupby("run", sort=True):
-        th = g["theta_deg"].to_numpy(float)
-        on = g["onset"].to_numpy(bool)
-        rows.append({"run": int(run), "theta_first_onset": float(th[on][0]) if on.any() else np.nan,
-                     "n_onsets": int(on.sum()), "theta_end": float(th[-1])})
-    return pd.DataFrame(rows, columns=["run", "theta_first_onset", "n_onsets", "theta_end"])
+def onset_summary(frames: pd.DataFrame) -> pd.DataFrame:
+    """Per run of an ensemble's per-frame table: theta of its first onset
+    (:func:`tiltpile.analysis.ensemble_data.first_onsets`; NaN: none), its number of onsets and
+    its last tilt. Columns run, theta_first_onset, n_onsets, theta_end."""
+    f = frames.sort_values(["run", "frame"], kind="stable")
+    by = f.groupby("run", sort=True)
+    runs = [int(r) for r in by.groups]
+    return pd.DataFrame({"run": runs, "theta_first_onset": first_onsets(f, runs),
+                         "n_onsets": [int(g["onset"].astype(bool).sum()) for _, g in by],
+                         "theta_end": [float(g["theta_deg"].iloc[-1]) for _, g in by]},
+                        columns=["run", "theta_first_onset", "n_onsets", "theta_end"])
 
 
 def plot(series: pd.DataFrame, facts: dict, onsets: pd.DataFrame | None = None):

@@ -122,7 +122,7 @@ def lost_fraction(run, progress: bool = False) -> np.ndarray:
 def onsets(run, cutoff: float | None = None, progress: bool = False) -> dict:
     """Avalanche onsets of a run by the lost-contact criterion (default cutoff: the analysis
     default, 2%). Returns dict cutoff, frames (onset frame indices), theta_deg (their tilt),
-    max_lost_fraction, notes (resolution warnings of :func:`segment_avalanches`)."""
+    max_lost_fraction, notes (resolution warnings of :func:`tiltpile.analysis.segment_avalanches`)."""
     cutoff = DEFAULT_PARAMS["cutoff"] if cutoff is None else cutoff
     lf = lost_fraction(run, progress)
     with warnings.catch_warnings(record=True) as caught:

@@ -1,4 +1,4 @@
-"""``tiltpile bench --chart DIR`` (``make bench``): the speed x accuracy chart of issue 6.
+"""``tiltpile bench --chart DIR`` (``make bench``): the speed x accuracy chart of the solver.
 
 Three measurements, all on one core, one after the other, written to ``DIR`` (each file to a
 temporary name, then renamed):
@@ -37,7 +37,7 @@ temporary name, then renamed):
    ``StepRecord.updates``), sweeps per step. The default sweep (``solver.sweep``, interleaved)
    relax 1 with the default overlap slop at every N; at ``variant_ns`` also, from the same state: forward relax 1 with the slop (the
    key order, the default before the interleaved sweep), random relax 1 with slop 0 (plain NLGS
-   with the plain gap term, the reference of issue 6), forward relax 1 with slop 0, and forward
+   with the plain gap term, the speed reference), forward relax 1 with slop 0, and forward
    relax 1.5 (projected SOR). Last, the cost of a step of the default sweep at exactly
    ``fixed_sweeps`` sweeps (tol 0), ``fixed_rounds`` rounds of
    ``fixed_steps`` steps, each round over every N in turn: median over all those steps.

@@ -165,7 +165,7 @@ def _linear_fit(d: pd.DataFrame) -> dict:
                    loglog_prefactor=float(math.exp(icpt)),
                    ratio_to_line=(ms / (a * n)).tolist())
         if big.sum() >= 2:
-            # issue 6: "cost per step within 1.3x of linear in N from 1000 to 16000"
+            # the target: cost per step within 1.3x of linear in N from 1000 to 16000 grains
             per = ms[big] / n[big]
             out["cost_per_grain_max_over_min_1000_up"] = float(per.max() / per.min())
             s2, _ = np.polyfit(np.log(n[big]), np.log(ms[big]), 1)
