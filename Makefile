@@ -104,9 +104,9 @@ FIG_JSON := $(patsubst notebooks/%.ipynb,$(FIGURES)/%.json,$(NOTEBOOKS))
 # The code a figure's JSON depends on. FIG_COMMON: what every figure notebook imports (data and
 # style, the analysis but for the two studies' own modules, the run-file and record readers, the
 # package's version); FIG_USES_<module>: the other modules of src/tiltpile its figure module
-# imports, directly or not. A figure module
-# imports no other figure's module (shared helpers live in data.py, style.py, snapshot.py), save
-# the preparation study, which is Fig. 2's computation on several ensembles.
+# imports, directly or not. A figure module imports no other figure's module (shared helpers
+# live in data.py, style.py, snapshot.py), save the preparation study, which is Fig. 2's
+# computation on several ensembles.
 # tests/workflow/test_build_graph.py checks these lists against the imports.
 ANALYSIS := $(wildcard src/tiltpile/analysis/*.py src/tiltpile/analysis/*/*.py)
 FIG_COMMON := $(wildcard src/tiltpile/__init__.py src/tiltpile/figures/__init__.py \
@@ -233,8 +233,8 @@ clean-data:
 # (the first history is the reference, normally fresh piles) into
 # PREP_FIGURES/preparation.{png,pdf,json}. PREP_DIRS="dir ..." instead names existing ensembles
 # and runs nothing. NB="-p name value ..." with VARIANT=V passes analysis parameters to the
-# notebook, writing figures/V/ (PREP_FIGURES) instead. `make zcount` charts <z> by counting rule on the same ensembles
-# (`tiltpile zcount`, PREP_FIGURES/zcount.{png,json}). About 3.5 hours on two cores for the five
+# notebook, writing figures/V/ (PREP_FIGURES) instead. `make zcount` charts <z> by counting rule
+# on the same ensembles (`tiltpile zcount`, PREP_FIGURES/zcount.{png,json}). About 3.5 hours on two cores for the five
 # histories (a cycled run costs 2.6-6 times the sweeps of a fresh one).
 PREP_ROOT ?= data/preparation
 PREP_RUNS ?= 6
