@@ -85,3 +85,28 @@ def test_frame_functions_take_the_parameters_by_name():
     assert a["mobilized"].tolist() == [False, False, True]   # the sliding status
     assert b["mobilized"].tolist() == [False, True, False]   # |f_t| >= mu f_n (1 - eps)
 
+
+
+def test_the_rigidity_columns_of_a_frame(pile_factory, contacts_factory):
+    """A triangular pile on its fixed row is one rigid cluster from the ground to the surface
+    while its contacts stick; with every contact whose lower grain is in row 4 or above sliding
+    (1 bar each), rows 5 and 6 come loose, rows 1-4 stay rigid with the ground (2 sticking
+    contacts down each: 4 bars for 3 degrees of freedom), and nothing spans."""
+    pos, radius, fixed, row = pile_factory(8, 6)
+    L = 8.0
+    pair = contacts_factory(pos, radius, L)
+    force = np.column_stack([np.ones(len(pair)), np.zeros(len(pair))])
+    zero = np.zeros_like(pos)
+
+    def rigidity(status):
+        r, _, _ = tables.frame_observables(radius, fixed, L, pos, zero, np.zeros(len(radius)),
+                                           pair, force, status, 0.0)
+        return r["rigid_fraction"], r["floppy_per_grain"], r["rigid_spanning"], r["n_rigid_left_out"]
+
+    frac, floppy, spanning, left_out = rigidity(np.ones(len(pair), dtype=np.int8))
+    assert (frac, floppy, spanning, left_out) == (1.0, 0.0, True, 0)
+    top = row[pair[:, 0]] >= 4
+    frac, floppy, spanning, _ = rigidity(np.where(top, 2, 1).astype(np.int8))
+    n_mobile = int((~fixed).sum())
+    assert frac == pytest.approx(((row >= 1) & (row <= 4)).sum() / n_mobile)
+    assert floppy > 0 and not spanning

@@ -102,13 +102,18 @@ def _paper_figures() -> int:
     return len(re.findall(r"\\begin\{figure\}", PAPER.read_text()))
 
 
+# figures beyond the paper, numbered after its figures (their notebooks follow the same contract)
+BEYOND_PAPER = ("fig7_rigidity",)
+
+
 def test_every_figure_has_one_notebook():
     n = _paper_figures()
     assert n == 6
     for k in range(1, n + 1):
         mine = [p for p in NOTEBOOKS if p.name.startswith(f"fig{k}_")]
         assert len(mine) == 1, f"figure {k} of the paper needs exactly one notebook, found {mine}"
-    assert len(NOTEBOOKS) == n, f"notebooks without a figure of the paper: {NOTEBOOKS}"
+    extra = sorted(p.stem for p in NOTEBOOKS if int(re.match(r"fig(\d+)_", p.name).group(1)) > n)
+    assert extra == sorted(BEYOND_PAPER), f"notebooks without a figure of the paper: {extra}"
 
 
 @pytest.mark.parametrize("nb", NOTEBOOKS, ids=[p.stem for p in NOTEBOOKS])

@@ -32,6 +32,7 @@ import pandas as pd
 from . import avalanche as _av
 from . import clusters as _cl
 from . import contacts as _ct
+from . import rigidity as _rg
 
 DEFAULT_PARAMS = {
     "cutoff": 0.02,          # avalanche cutoff on the lost fraction
@@ -88,6 +89,11 @@ FRAME_DOCS = {
     "n_clusters": "critical clusters",
     "n_in_clusters": "grains in critical clusters",
     "cluster_fraction": "n_in_clusters / n_mobile",
+    "rigid_fraction": "mobile grains of the largest rigid cluster / n_mobile (rigidity.py: (3,3) "
+                      "pebble game, sliding contacts 1 bar, others 2, rattlers left out)",
+    "floppy_per_grain": "floppy modes of the contact network (relative to the ground) / n_mobile",
+    "rigid_spanning": "the largest rigid cluster holds the ground and a free-surface grain",
+    "n_rigid_left_out": "mobile grains left out of the rigidity count (rattlers, no contact)",
     "avalanching": "the frame belongs to an avalanche (lost_fraction above the cutoff; "
                    "avalanche.py)",
     "onset": "the frame starts an avalanche",
@@ -231,8 +237,8 @@ def frame_contacts(radius, fixed, box_length, position, pair, force, status, *, 
     :func:`~tiltpile.analysis.contacts.bulk_mask`; critical clusters over mobile (or bulk) grains.
     params: analysis parameters (``DEFAULT_PARAMS``; this function reads eps, link,
     cluster_region, ray_spacing and touch_tol). Returns dict pair, force, status (the kept
-    contacts), active, mobilized (per kept contact), bulk (N,) bool and labels (N,) cluster labels
-    (-1: none).
+    contacts), active, mobilized (per kept contact), bulk (N,) bool, top (N,) bool (free-surface
+    grains, :func:`~tiltpile.analysis.contacts.top_layer`) and labels (N,) cluster labels (-1: none).
     """
     p = _params(params)
     eps, link, cluster_region = p["eps"], p["link"], p["cluster_region"]
@@ -250,10 +256,11 @@ def frame_contacts(radius, fixed, box_length, position, pair, force, status, *, 
     mobil = _ct.mobilized_mask(force, status, mu_c, eps)
     bulk = _ct.bulk_mask(position, radius, fixed, pair, box_length, p["ray_spacing"],
                         p["touch_tol"])
+    top = _ct.top_layer(position, radius, fixed, box_length, p["ray_spacing"])
     include = bulk if cluster_region == "bulk" else mobile
     labels = _cl.critical_clusters(n, pair, active, mobil, include, link)
     return {"pair": pair, "force": force, "status": status, "active": active,
-            "mobilized": mobil, "bulk": bulk, "labels": labels}
+            "mobilized": mobil, "bulk": bulk, "top": top, "labels": labels}
 
 
 def frame_observables(radius, fixed, box_length, position, velocity, omega, pair, force, status,
@@ -300,6 +307,7 @@ def frame_observables(radius, fixed, box_length, position, velocity, omega, pair
     z_rest, _, n_rest = _ct.coordination(bc["z_i"], bc["m_i"], rest)
     e_t, e_r = _ct.kinetic_energy(radius, velocity, omega)
     nmob = int(mobile.sum())
+    rig = _rg.rigid_clusters(n, pair, active, mobil, fixed, min_contacts=p["min_contacts"])
     sizes = ctab["size"].to_numpy()
     row = {
         "n_mobile": nmob, "n_bulk": bc["n"], "n_rattlers": bc["n_rattlers"],
@@ -312,6 +320,10 @@ def frame_observables(radius, fixed, box_length, position, velocity, omega, pair
         "largest_cluster": int(sizes.max()) if sizes.size else 0,
         "n_clusters": int(sizes.size), "n_in_clusters": int(sizes.sum()),
         "cluster_fraction": float(sizes.sum() / nmob) if nmob else np.nan,
+        "rigid_fraction": rig.largest_size / nmob if nmob else np.nan,
+        "floppy_per_grain": rig.n_floppy / nmob if nmob else np.nan,
+        "rigid_spanning": _rg.spans(rig, fc["top"]),
+        "n_rigid_left_out": rig.n_left_out,
     }
     return row, ctab, {"pair": pair, "active": active, "labels": labels, "position": position}
 
