@@ -473,9 +473,13 @@ def _rigid_loses_spanning(n: dict):
 def _rigid_vs_marginal(n: dict):
     sp = _num(n.get("spanning_loss_theta_to_onset"))
     mz = _num(n.get("marginal_crossing_theta_to_onset"))
-    ours = (f"spanning lost (windows below 1/2) at {_f(sp, '.2f')} deg, marginal line crossed at "
-            f"{_f(mz, '.2f')} deg (n/a: not before the onset)")
     both_after = not math.isfinite(sp) and not math.isfinite(mz)
+    if both_after:
+        ours = ("neither before the onset: up to theta_m most quiet frames span and their mean "
+                "delta z_gen stays above 0")
+    else:
+        ours = (f"spanning lost (windows below 1/2) at {_f(sp, '.2f')} deg, marginal line crossed "
+                f"at {_f(mz, '.2f')} deg (n/a: not before the onset)")
     together = math.isfinite(sp) and math.isfinite(mz) and abs(sp - mz) <= 1.0
     return ours, _verdict(both_after or together), ""
 
