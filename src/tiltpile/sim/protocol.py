@@ -13,9 +13,10 @@
    frame 0 is the deposited pile at theta = 0 and a frame follows every ``frame_every`` steps
    (0.001 deg and 50 steps in the paper: 0.05 deg between frames).
 
-Events: ``Deposited`` (summary), ``Frame`` (arrays of one frame), ``Checkpoint`` (a full state,
-every ``checkpoint_every`` frames and every ``DEPOSITION_CHUNK * 10`` deposition steps), and
-``Progress`` (for progress bars). Resuming from a checkpoint's state gives the same events after
+Events: ``Deposited`` (summary), ``Prepared`` (the pretilt legs of the history, once they are
+done; only with ``protocol.pretilt_deg``), ``Frame`` (arrays of one frame), ``Checkpoint`` (a full
+state, every ``checkpoint_every`` frames and every ``DEPOSITION_CHUNK * 10`` deposition steps),
+``Progress`` (for progress bars) and ``Ended`` (why and where the run stopped, and its cost). Resuming from a checkpoint's state gives the same events after
 it, bit for bit, as the uninterrupted run: every chunk boundary is a fixed multiple of steps.
 
 Health (``config.HealthConfig``). Every chunk of steps is checked against the stop limits, and
