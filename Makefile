@@ -205,7 +205,7 @@ REPORT_ROOT := $(if $(filter smoke paper paper-fresh,$(notdir $(FIGURES))),$(pat
 REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparation.json \
                   $(foreach s,/ /smoke/ /paper/ /paper-fresh/,$(REPORT_ROOT)$(s)fig2_avalanche_criterion.json) \
                   $(REPORT_ROOT)/preparation.json $(REPORT_ROOT)/zcount.json)
-$(REPORT): $(REPORT_READS) src/tiltpile/report.py src/tiltpile/cli/report.py src/tiltpile/__init__.py \
+$(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli/report.py src/tiltpile/__init__.py \
            | $(STAMP)
 	$(PY) -m tiltpile report --figures $(FIGURES) --out $@
 

@@ -1,0 +1,42 @@
+"""The reproduction report: each claim of the paper against our numbers, from the figures' JSON.
+
+``tiltpile report --figures figures --out paper/REPRODUCTION.md`` (run by ``make figures``) reads
+``figures/fig*.json`` (written by the notebooks through :func:`tiltpile.figures.style.save`) and
+writes a Markdown table: the paper's value, ours, the preset and the number of runs it came from,
+and a verdict (agrees / disagrees / inconclusive), followed by notes on every disagreement, the
+headline numbers of Fig. 2 at each scale that has been run (smoke, default, paper; "not yet run"
+otherwise), the preparation study, and for every claim the paper's sentence and the rule that
+judges it. :func:`inputs` lists every file it reads.
+
+Verdicts are computed, not written by hand: each :class:`Claim` has a ``judge`` that looks at the
+numbers and returns (our value as text, verdict, note).
+
+One concern per module; every name below imports from ``tiltpile.report``:
+
+- :mod:`.judging`: what a claim and its rule are, the four verdicts, and the helpers that read and
+  print the numbers (shared by the judges and the tables);
+- :mod:`.paper`: the paper's claims (Figs. 1-6, the avalanche angle), their judges and rules;
+- :mod:`.rigidity`: the claims beyond the paper (the rigid clusters, Fig. 7), likewise;
+- :mod:`.claims`: all of them in the report's order (``CLAIMS``) with their rules (``RULES``);
+- :mod:`.scales`: Fig. 2's headline numbers at every scale, and where each scale's figures live;
+- :mod:`.studies`: the preparation study's section and what the notes cite from the preparation
+  and <z>-counting studies;
+- :mod:`.document`: loading, rendering and writing the report, and the files it reads.
+"""
+
+from __future__ import annotations
+
+from .claims import CLAIMS, RULES
+from .document import inputs, load_figures, render, write_report
+from .judging import AGREES, DISAGREES, INCONCLUSIVE, MISSING, Claim, Rule
+from .paper import CLAIMS_123, CLAIMS_456, RULES_PAPER
+from .rigidity import BEYOND, CLAIMS_RIGIDITY, RULES_RIGIDITY
+from .scales import SCALES, render_scales, scale_dirs
+from .studies import (CITES, QUIET_WINDOW_DEG, STUDIES, _theta_m_cites, _z_mean_cites,
+                      load_studies, render_preparation)
+
+__all__ = ["AGREES", "BEYOND", "CITES", "CLAIMS", "CLAIMS_123", "CLAIMS_456", "CLAIMS_RIGIDITY",
+           "DISAGREES", "INCONCLUSIVE", "MISSING", "QUIET_WINDOW_DEG", "RULES", "RULES_PAPER",
+           "RULES_RIGIDITY", "SCALES", "STUDIES", "Claim", "Rule", "inputs", "load_figures",
+           "load_studies", "render", "render_preparation", "render_scales", "scale_dirs",
+           "write_report"]

@@ -1,0 +1,66 @@
+"""What a claim is and how its judge writes its verdict: :class:`Claim`, :class:`Rule`, the four
+verdicts, and the helpers the judges (and the tables) share to read and print the figures' numbers.
+
+Each judge tests what the paper's sentence says, with a stated tolerance; ensemble means carry a
+95% bootstrap interval over runs (stats.bootstrap_ci), and a verdict that depends on a mean uses
+the interval, not the point. The rule of each claim is its :class:`Rule`, printed in the report's
+"How each claim is tested" section.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Callable
+
+AGREES, DISAGREES, INCONCLUSIVE, MISSING = "agrees", "disagrees", "inconclusive", "not measured"
+
+
+@dataclass(frozen=True)
+class Claim:
+    key: str
+    text: str              # the paper's claim, in our words
+    paper: str             # the paper's value
+    figure: str            # figure JSON stem the numbers come from
+    judge: Callable[[dict], tuple[str, str, str]]   # numbers -> (ours, verdict, note)
+
+
+def _f(x, fmt: str = ".3g") -> str:
+    if x is None or (isinstance(x, float) and not math.isfinite(x)):
+        return "n/a"
+    return format(x, fmt)
+
+
+@dataclass(frozen=True)
+class Rule:
+    sentence: str          # what the paper says (quoted or closely paraphrased)
+    test: str              # what we compute and when it agrees
+
+
+def _num(x) -> float:
+    return float("nan") if x is None else float(x)
+
+
+def _verdict(ok, measurable: bool = True) -> str:
+    if not measurable:
+        return INCONCLUSIVE
+    return AGREES if ok else DISAGREES
+
+
+def _ci(n: dict, key: str, fmt: str = ".2f", est: str | None = None) -> str:
+    """'x [lo, hi]' of numbers key, key_ci_low, key_ci_high ('x' alone without an interval)."""
+    x = _num(n.get(est or key))
+    lo, hi = _num(n.get(f"{key}_ci_low")), _num(n.get(f"{key}_ci_high"))
+    if math.isfinite(lo) and math.isfinite(hi):
+        return f"{_f(x, fmt)} [{_f(lo, fmt)}, {_f(hi, fmt)}]"
+    return _f(x, fmt)
+
+
+def _overlaps(lo: float, hi: float, a: float, b: float) -> bool:
+    return math.isfinite(lo) and math.isfinite(hi) and lo <= b and hi >= a
+
+
+def _ci_text(d: dict, fmt: str = ".2f") -> str:
+    d = d or {}
+    return (f"{_f(_num(d.get('estimate')), fmt)} [{_f(_num(d.get('low')), fmt)}, "
+            f"{_f(_num(d.get('high')), fmt)}]")

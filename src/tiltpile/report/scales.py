@@ -1,0 +1,74 @@
+"""The same headline numbers of Fig. 2 at every scale that has been run (smoke, default, paper,
+paper-fresh; "not yet run" otherwise), and where each scale's figures live (:func:`scale_dirs`).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from .judging import _ci, _f, _num
+
+
+SCALES = (("smoke", "smoke"), ("default", ""), ("paper", "paper"), ("paper-fresh", "paper-fresh"))
+
+
+def scale_dirs(figures_dir) -> dict[str, Path]:
+    """{scale: figures directory}: the default scale writes ``figures/``, the others
+    ``figures/<scale>/``; from any of them the others are found."""
+    d = Path(figures_dir)
+    root = d.parent if d.name in {sub for _, sub in SCALES if sub} else d
+    return {name: (root / sub if sub else root) for name, sub in SCALES}
+
+
+def _gap_text(b: dict) -> str:
+    between, ratio = b.get("cutoff_between_means"), _num(b.get("cutoff_density_ratio"))
+    if between is None:
+        return "n/a"
+    where = "between the means" if between else "beyond both means"
+    return f"{'yes' if between and ratio < 1.0 else 'no'} ({_f(ratio, '.2f')}, {where})"
+
+
+def _scale_rows(n2: dict, doc: dict | None) -> dict[str, str]:
+    if doc is None:
+        return {}
+    n = doc.get("numbers", {})
+    b = n.get("lost_bimodality") or {}
+    per = [_num(v) for v in (n.get("theta_slide_per_run") or [])]
+    k = sum(math.isfinite(v) for v in per)
+    fin = sorted(v for v in per if math.isfinite(v))
+    return {
+        "grains x runs": f"{doc.get('n_grains')} x {doc.get('n_runs')}",
+        "first 2% onset (deg)": _ci(n, "theta_m", ".1f", "theta_m_mean"),
+        "first large slide (deg)": (f"{k} of {len(per)} runs" + (f": {', '.join(_f(v, '.1f') for v in fin)}"
+                                                                if fin else "")
+                                    + f"; tilt ends {_f(_num(n.get('theta_end_min')), '.0f')}"),
+        "KE threshold (per grain)": _f(_num(n.get("ke_threshold")), ".1e"),
+        "frames losing no contact": _f(_num(n.get("lost_zero_fraction")), ".0%"),
+        "Ashman D / valley depth": f"{_f(_num(b.get('ashman_d')), '.1f')} / {_f(_num(b.get('valley_depth')), '.2f')}",
+        "valley at (lost fraction)": _f(_num(b.get("valley")), ".2%"),
+        "cutoff in the gap (density there / lower peak)": _gap_text(b),
+        "<z> quiet": _ci(n, "z_quiet_run_mean", ".3f"),
+        "<n_m> quiet": _ci(n, "n_m_quiet_run_mean", ".3f"),
+        "quiet frames below the line": _ci(n, "quiet_below_run_mean", ".1%"),
+    }
+
+
+def render_scales(figures_dir) -> list[str]:
+    """Markdown lines: Fig. 2's headline numbers per scale ("not yet run" where absent)."""
+    cols = {}
+    for name, d in scale_dirs(figures_dir).items():
+        p = d / "fig2_avalanche_criterion.json"
+        cols[name] = _scale_rows({}, json.loads(p.read_text())) if p.exists() else None
+    keys = next((list(c) for c in cols.values() if c), [])
+    if not keys:
+        return []
+    lines = ["", "## The same numbers at every scale", "",
+             "From `fig2_avalanche_criterion.json` of each preset (`make figures PRESET=...`); "
+             "brackets: 95% bootstrap interval over runs.", "",
+             "| | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
+    for k in keys:
+        lines.append(f"| {k} | " + " | ".join(
+            (c.get(k, "n/a") if c else "not yet run") for c in cols.values()) + " |")
+    return lines

@@ -1,0 +1,172 @@
+"""The studies beside the figures: the preparation study's section of the report
+(:func:`render_preparation`), and the sentences the notes of two claims cite from the preparation
+and <z>-counting studies (``CITES``), read by :func:`load_studies`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from .judging import _f, _num
+from .scales import scale_dirs
+
+STUDIES = {"preparation": "preparation.json", "zcount": "zcount.json"}
+
+
+def load_studies(figures_dir) -> dict[str, dict]:
+    """{name: JSON document} of the studies the verdicts cite (``STUDIES``: the preparation
+    study, ``make preparation``; <z> by counting rule, ``make zcount``), read from the default
+    scale's figures directory (they are made at 1000 grains); absent ones left out."""
+    root = scale_dirs(figures_dir)["default"]
+    return {k: json.loads((root / f).read_text()) for k, f in STUDIES.items()
+            if (root / f).exists()}
+
+
+QUIET_WINDOW_DEG = 14.4  # the paper's Fig. 5 shows clusters this far before an onset
+
+
+def _theta_m_cites(studies: dict) -> str:
+    """What the preparation study says of the first onset: per history, the runs quiet past the
+    paper's window and the mean first onset, against the reference (fresh piles)."""
+    n = (studies.get("preparation") or {}).get("numbers")
+    if not n or not n.get("ensembles"):
+        return ""
+    ens = n["ensembles"]
+
+    def part(label):
+        e = ens[label]
+        m, lo, hi = (_num(e.get(f"theta_first_onset_{x}")) for x in ("mean", "ci_low", "ci_high"))
+        band = f" [{lo:.1f}, {hi:.1f}]" if math.isfinite(lo) and math.isfinite(hi) else ""
+        return (f"{label}: {_quiet_past(e)} of {e['n_runs']} runs quiet to 14.4 deg, first onset "
+                f"{_f(m, '.1f')}{band} deg")
+
+    others = [lab for lab in ens if lab != n["reference"]]
+    grains = "/".join(sorted({str(e.get("n_grains")) for e in
+                              studies["preparation"].get("ensembles", [])}))
+    return (f"The preparation study ({grains} grains; section below) shows how the pile's history "
+            f"sets this: {part(n['reference'])}; " + "; ".join(part(lab) for lab in others) + ".")
+
+
+def _z_mean_cites(studies: dict) -> str:
+    """What the counting-rule study says of <z>: the analysis's rule and the least surface gap
+    at which the count reaches the paper's 3.5, per ensemble."""
+    doc = studies.get("zcount")
+    if not doc or not doc.get("ensembles"):
+        return ""
+    parts = []
+    for label, e in doc["ensembles"].items():
+        z = _num((e.get("table", {}).get(e.get("analysis_rule"), {}) or {}).get("z"))
+        reach = e.get("reaches_paper_z") or {}
+        gap = ((reach.get("first_gap") or {}).get("walls=in rattlers=out grains=bulk") or {})
+        g = _num(gap.get("interpolated"))
+        parts.append(f"{label} {_f(z, '.3f')}, 3.5 at gap <= {_f(g, '.2g')} d" if math.isfinite(g)
+                     else f"{label} {_f(z, '.3f')}, 3.5 at no gap up to the alert distance")
+    force = any((e.get("reaches_paper_z") or {}).get("force_rule_reaches")
+                for e in doc["ensembles"].values())
+    return ("By counting rule (`tiltpile zcount`, figures/zcount.png): no force threshold reaches "
+            "3.5, " if not force else "By counting rule (`tiltpile zcount`, figures/zcount.png): ") + (
+            "counting every pair of bulk grains closer than a surface gap g does: "
+            + "; ".join(parts) + ". The paper's ~3.5 is then what a contact list holding the "
+            "near contacts counts, not the force-bearing network.")
+
+
+CITES = {"theta_m": _theta_m_cites, "z_mean": _z_mean_cites}
+
+
+def _quiet_past(e: dict) -> int:
+    """Runs whose first onset comes at or after the paper's window (the paper's Fig. 5 has quiet
+    frames at theta - theta_m = -14.4 deg, so theta_m >= 14.4 deg; a run with no onset to the
+    end of its tilt counts: it stayed quiet)."""
+    if "n_runs_quiet_past" in e:
+        return int(e["n_runs_quiet_past"])
+    return sum(x is None or _num(x) >= QUIET_WINDOW_DEG for x in e["per_run"]["theta_first_onset"])
+
+
+def render_preparation(figures_dir) -> list[str]:
+    """Markdown lines: the preparation study (``preparation.json`` of ``figures_dir``, written by
+    ``make preparation``), one row per ensemble in two tables (failure and memory; what the
+    history leaves in the pile); [] when the study has not been run."""
+    p = Path(figures_dir) / "preparation.json"
+    if not p.exists():
+        return []
+    n = json.loads(p.read_text())["numbers"]
+
+    def ci(e, key, fmt):
+        m, lo, hi = (_num(e.get(f"{key}_{x}")) for x in ("mean", "ci_low", "ci_high"))
+        if not math.isfinite(m):
+            return "n/a"
+        return f"{m:{fmt}} [{lo:{fmt}}, {hi:{fmt}}]" if math.isfinite(lo) else f"{m:{fmt}}"
+
+    def rep(e, key):
+        r = (e.get("repose") or {}).get(key)
+        if not r or not math.isfinite(_num(r.get("estimate"))):
+            return "n/a"
+        lo, hi = _num(r.get("low")), _num(r.get("high"))
+        band = f" [{lo:.1f}, {hi:.1f}]" if math.isfinite(lo) and math.isfinite(hi) else ""
+        return f"{_num(r['estimate']):.1f}{band} ({r.get('n')})"
+
+    lines = ["", "## Which pile did the paper analyse? Preparation histories", "",
+             "From `preparation.json` (`make preparation PREP_DIRS=...`): the same preset, piles "
+             "tilted back and forth before the analysed ramp (`protocol.pretilt_deg`, or "
+             "`protocol.cycles` and `protocol.theta_rev_deg` for Deboeuf et al.'s two cycles past "
+             f"theta_rev) against fresh ones ({n['reference']}, the reference); mean [95% bootstrap "
+             "interval over runs]. The paper's Fig. 5 needs runs whose first onset comes after "
+             f"{QUIET_WINDOW_DEG} deg; Deboeuf et al. give theta_r ~ 15 deg and theta_a ~ 21 deg "
+             "for the paper's piles.", "",
+             "Slides in the ramp are detected at the fresh piles' Fig. 2a kinetic-energy threshold "
+             "for every ensemble. The slide and repose angles come from `tiltpile repose`, which "
+             "tilts each finished run on into its large slide and back until the flow stops "
+             "(runs measured in brackets); the repose angle is the box's angle then, and the slope "
+             "of the free surface to the horizontal (lower: the slide has piled grains downhill). The memory: the first frame losing more than 0.5% of its "
+             "contacts (irreversible change, however small) and the first 2% onset over the "
+             "history's amplitude theta_rev.", "",
+             "| preparation | runs | first 2% onset (deg) | runs quiet past 14.4 deg "
+             "| first slide in the ramp (deg; runs) | slide angle (deg; repose) "
+             "| repose angle: box (deg) | repose angle: surface (deg) "
+             "| first change > 0.5% (deg) | first onset / theta_rev "
+             "| onsets below theta_rev |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
+    best, best_n = None, -1
+    for label, e in n["ensembles"].items():
+        quiet = _quiet_past(e)
+        if quiet > best_n:
+            best, best_n = label, quiet
+        slide = "theta_first_slide_ref_ke" if "theta_first_slide_ref_ke_mean" in e else "theta_first_slide"
+        lines.append(
+            f"| {label} | {e['n_runs']} | {ci(e, 'theta_first_onset', '.2f')} | {quiet} of {e['n_runs']} "
+            f"| {ci(e, slide, '.2f')} ({e.get('n_runs_with_slide' + slide[len('theta_first_slide'):])}) "
+            f"| {rep(e, 'slide_deg')} | {rep(e, 'stop_deg')} | {rep(e, 'surface_deg')} "
+            f"| {ci(e, 'theta_first_change', '.2f')} "
+            f"| {ci(e, 'onset_over_rev', '.2f')} | {ci(e, 'n_onsets_below_rev', '.2f')} |")
+    lines += ["", "What the history leaves in the pile (frame 0, after it) and in the ramp's quiet "
+              "frames:", "",
+              "| preparation | <z> quiet | <n_m> quiet | packing fraction at 0 deg "
+              "| fabric anisotropy at 0 deg | fabric major axis (deg from normal) "
+              "| surface tilt at 0 deg | Fig. 2b Ashman D | frames losing no contact |",
+              "|---|---|---|---|---|---|---|---|---|"]
+    for label, e in n["ensembles"].items():
+        bim = e.get("lost_bimodality") or {}
+        lines.append(
+            f"| {label} | {ci(e, 'z_quiet', '.3f')} | {ci(e, 'n_m_quiet', '.4f')} "
+            f"| {ci(e, 'phi_start', '.4f')} | {ci(e, 'fabric_start', '.3f')} "
+            f"| {ci(e, 'fabric_major_start', '.1f')} | {ci(e, 'surface_tilt_start', '.2f')} "
+            f"| {_f(_num(bim.get('ashman_d')), '.2f')} "
+            f"| {_f(_num(e.get('lost_zero_fraction')), '.0%')} |")
+    ref = n["ensembles"][n["reference"]]
+    lines.append("")
+    if best_n > 0:
+        lines.append(f"**{best}** brings the most runs past the paper's {QUIET_WINDOW_DEG} deg before their "
+                     f"first onset ({best_n} of {n['ensembles'][best]['n_runs']}; fresh piles: "
+                     f"{_quiet_past(ref)}).")
+    else:
+        lines.append(f"No preparation studied brings a run past {QUIET_WINDOW_DEG} deg before its first "
+                     "onset; the differences from the fresh piles (first onset, onsets below the "
+                     "preparation's amplitude) show how far each goes.")
+    for label, dd in n.get("differences", {}).items():
+        d = dd.get("theta_first_onset")
+        if d:
+            lines.append(f"- {label}: first onset {d['estimate']:+.2f} deg [{d['low']:+.2f}, {d['high']:+.2f}] "
+                         "against the fresh piles.")
+    return lines
