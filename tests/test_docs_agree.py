@@ -1,6 +1,7 @@
 """Facts the README and the docs both state, stated the same: the paper ensemble's cost and
-whether the 4000-grain pile flows before its large slide (docs/performance.md is the measurement
-log; the README and docs/slurm.md quote its current estimates)."""
+whether the 4000-grain pile flows before its large slide (the "Where things stand" of
+docs/performance.md summarizes the measurement log, docs/performance-log.md; the README and
+docs/slurm.md quote its current estimates)."""
 
 from pathlib import Path
 

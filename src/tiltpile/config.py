@@ -79,11 +79,11 @@ class SolverConfig:
     slide_cap_ke: float = _f(1e-3, lo=0.0, lo_open=True,
                          doc="kinetic energy per mobile grain [m g d] above which max_iter_slide applies")
     # interleaved: the forward (key) order with no body twice within 8 places (sim/solver.py);
-    # why it is the default: docs/performance.md ("Sweep order")
+    # why it is the default: docs/performance-log.md ("Sweep order")
     sweep: str = _f("interleaved", choices=("alternating", "random", "forward", "interleaved"),
                     doc="contact order of the NLGS sweeps")
     # Projected SOR (sim/solver.py); relax 1 with sweep = "random" is the plain NLGS reference.
-    # Why the default stays 1: docs/performance.md ("Numbers in the configuration's comments")
+    # Why the default stays 1: docs/performance-log.md ("Numbers in the configuration's comments")
     relax: float = _f(1.0, lo=0.0, lo_open=True, hi=2.0, hi_open=True,
                       doc="over-relaxation factor omega of the local solves (projected SOR; "
                           "1 = plain NLGS)")
@@ -146,7 +146,7 @@ class HealthConfig:
     is capped nearly everywhere; the energy limits catch a solver that is merely loose (and, in
     small piles, overlaps pushed out in one step: what a too large dt produces). Missed-contact
     steps have no limit of their own: a contact actually missed shows up as an overlap one step
-    later. What the presets measure against these defaults: docs/performance.md ("Health limits
+    later. What the presets measure against these defaults: docs/performance-log.md ("Health limits
     against the presets").
     """
 

@@ -1,5 +1,5 @@
 """Measurements: what the simulator costs and how accurate it is. The results, dated, are in
-``docs/performance.md``; ``make bench`` regenerates ``figures/performance/``.
+``docs/performance-log.md`` (summarized in ``docs/performance.md``); ``make bench`` regenerates ``figures/performance/``.
 
 Every module runs as ``python -m tiltpile.bench.<name>`` through ``main(argv)`` and measures
 nothing when imported (``python -m tiltpile.bench`` lists them):

@@ -27,7 +27,7 @@ component times dt (the position error the step leaves) and the contacts whose s
 sticking, sliding) differs. The contact list is the same for every cap: a rebuild is decided
 before the solve (checked).
 
-docs/performance.md ("Speed and accuracy") records what it measured on the paper run.
+docs/performance-log.md ("Speed and accuracy") records what it measured on the paper run.
 """
 from __future__ import annotations
 

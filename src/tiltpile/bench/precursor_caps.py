@@ -17,7 +17,7 @@ mean displacement of the mobile grains over the S steps, its distance from the r
 positions, the fraction of steps at the cap and the time per step.
 
 If the reference comes to rest where a lower cap keeps moving, the motion between events is made
-by the cap, not by the pile. ``docs/performance.md`` records what it measured.
+by the cap, not by the pile. ``docs/performance-log.md`` records what it measured.
 """
 from __future__ import annotations
 
