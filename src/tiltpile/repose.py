@@ -57,6 +57,7 @@ import numpy as np
 
 from tiltpile import config as cfgmod
 from tiltpile.sim import protocol
+from tiltpile.sim.solver import IMPULSE, N_CONTACT_COLUMNS
 from tiltpile.sim.step import System
 from tiltpile.analysis.structure import surface_tilt_deg
 from tiltpile.store import Run, RunFileError, open_run
@@ -176,8 +177,8 @@ def rebuild_system(run: Run, frame: int = -1) -> tuple[cfgmod.Config, System]:
     cj = np.where(pair[:, 1] < 0, n - 1 - pair[:, 1], pair[:, 1]).astype(np.int32)  # walls -> N + w
     key = ci.astype(np.int64) * (n + 3) + cj
     order = np.argsort(key, kind="mergesort")
-    c = np.zeros((ci.size, 8))
-    c[:, 6:8] = force[order] * cfg.solver.dt
+    c = np.zeros((ci.size, N_CONTACT_COLUMNS))
+    c[:, IMPULSE] = force[order] * cfg.solver.dt
     state.update(radius=radius, fixed=fixed, pos=np.asarray(run.position(k), dtype=np.float64),
                  rot=np.asarray(run.rotation(k), dtype=np.float64), vel=vel,
                  ref=np.full((n, 2), np.inf), ci=ci[order], cj=cj[order], key=key[order], c=c,

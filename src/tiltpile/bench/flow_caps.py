@@ -39,7 +39,7 @@ import numpy as np
 
 from tiltpile import config as cfgmod
 from tiltpile.sim import protocol
-from tiltpile.sim.solver import natural_residual
+from tiltpile.sim.solver import IMPULSE, natural_residual
 from tiltpile.store import open_run
 
 DEFAULT_VARIANTS = ("20000", "1000", "500", "300", "200", "100")
@@ -107,7 +107,7 @@ def one_step(cfg, seed: int, theta, state, caps) -> list[dict]:
         if ends and not np.array_equal(s.key, ends[0][-1]):
             raise RuntimeError(f"max_iter {cap} ends on another contact list than {caps[0]}")
         ends.append((cap, int(rec.iterations[0]), natural_residual(s.ci, s.cj, s.c, s.vel),
-                     s.vel[: s.n][mob, :3].copy(), s.c[:, 6:8].copy(), s.status.copy(),
+                     s.vel[: s.n][mob, :3].copy(), s.c[:, IMPULSE].copy(), s.status.copy(),
                      s.key.copy()))
     v_ref, p_ref, st_ref = ends[0][3:6]
 

@@ -78,7 +78,7 @@ def main(argv: list[str] | None = None) -> int:
                             np.empty(s.ci.shape[0], np.int64), 1.0)
                 dv = np.hypot(vel[: s.n, 0] - s.vel[: s.n, 0], vel[: s.n, 1] - s.vel[: s.n, 1])[mob] / dt
                 dvm.append(dv.max()); dvr.append(np.sqrt(np.mean(dv ** 2)))
-                dps.append(np.sqrt(np.sum((c[:, 6:8] - s.c[:, 6:8]) ** 2) / np.sum(c[:, 6:8] ** 2)))
+                dps.append(np.sqrt(np.sum((c[:, solver.IMPULSE] - s.c[:, solver.IMPULSE]) ** 2) / np.sum(c[:, solver.IMPULSE] ** 2)))
         its = np.array(its)
         print(f"{spec:18s} {its.mean():8.1f} ({np.median(its):5.0f}) {1e3 * wall / steps:8.2f} {1e9 * wall / upd:7.2f} "
               f"{np.median(nat):8.1e} {np.median(dvm):8.1e} {np.median(dvr):8.1e} {np.median(dps):8.1e} "

@@ -23,6 +23,7 @@ import time
 
 from tiltpile import config as cfgmod
 from tiltpile.bench.pile import bench_config, settled_pile
+from tiltpile.sim.solver import C_PN
 
 
 def time_pile(n: int = 4000, steps: int = 200, preset: str = "paper-fresh", config_file=None,
@@ -40,7 +41,7 @@ def time_pile(n: int = 4000, steps: int = 200, preset: str = "paper-fresh", conf
     wall = time.perf_counter() - t0
     contacts = int(sysm.ci.shape[0])
     return dict(n=n, preset=preset, steps=steps, contacts=contacts,
-                active_contacts=int((sysm.c[:, 6] > 0).sum()),
+                active_contacts=int((sysm.c[:, C_PN] > 0).sum()),
                 mean_iterations=float(rec.iterations.mean()), ms_per_step=1e3 * wall / steps,
                 ns_per_contact_update=1e9 * wall / max(1, int(rec.updates.sum())),
                 tol=cfg.solver.tol, sweep=cfg.solver.sweep, dt=cfg.solver.dt)

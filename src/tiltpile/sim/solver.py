@@ -71,6 +71,14 @@ import numpy as np
 from tiltpile.sim.jit import njit
 from tiltpile.sim.rng import shuffle
 
+# columns of the contact array ``c`` (C, N_CONTACT_COLUMNS) and of the body array ``vel``
+# (N + 3, 4), as in the module docstring; ``c[:, IMPULSE]`` is the pair (p_n, p_t). Module-level
+# integers: numba compiles them in as constants.
+C_NX, C_NY, C_B, C_MU, C_IWN, C_IWT, C_PN, C_PT = range(8)
+N_CONTACT_COLUMNS = 8
+IMPULSE = slice(C_PN, C_PT + 1)
+V_X, V_Y, V_S, V_IM = range(4)
+
 FORWARD, ALTERNATING, RANDOM, INTERLEAVED = 0, 1, 2, 3
 _U = np.uint64  # unsigned indices: numba emits no negative-index wrap-around for them
 SWEEPS = {"forward": FORWARD, "alternating": ALTERNATING, "random": RANDOM, "interleaved": INTERLEAVED}
@@ -89,23 +97,23 @@ PRUNE_MARGIN = 1.0
 
 @njit
 def apply_impulses(ci, cj, c, vel):
-    """Add every contact's current impulse (c[:, 6:8]) to the body velocities (warm start)."""
+    """Add every contact's current impulse (c[:, IMPULSE]) to the body velocities (warm start)."""
     for a in range(ci.shape[0]):
-        _push(vel, ci[a], cj[a], c[a, 0], c[a, 1], c[a, 6], c[a, 7])
+        _push(vel, ci[a], cj[a], c[a, C_NX], c[a, C_NY], c[a, C_PN], c[a, C_PT])
 
 
 @njit(inline="always")
 def _push(vel, i, j, nx, ny, dpn, dpt):
     px = dpn * nx - dpt * ny
     py = dpn * ny + dpt * nx
-    imi = vel[i, 3]
-    imj = vel[j, 3]
-    vel[i, 0] += imi * px
-    vel[i, 1] += imi * py
-    vel[i, 2] -= 2.0 * imi * dpt
-    vel[j, 0] -= imj * px
-    vel[j, 1] -= imj * py
-    vel[j, 2] -= 2.0 * imj * dpt
+    imi = vel[i, V_IM]
+    imj = vel[j, V_IM]
+    vel[i, V_X] += imi * px
+    vel[i, V_Y] += imi * py
+    vel[i, V_S] -= 2.0 * imi * dpt
+    vel[j, V_X] -= imj * px
+    vel[j, V_Y] -= imj * py
+    vel[j, V_S] -= 2.0 * imj * dpt
 
 
 @njit
@@ -176,13 +184,13 @@ def _pruned_sweeps(ci, cj, c, vel, tol, it, last, w):
     nc = ci.shape[0]
     pci = np.empty(nc, np.int32)
     pcj = np.empty(nc, np.int32)
-    pc = np.empty((nc, 8))
+    pc = np.empty((nc, N_CONTACT_COLUMNS))
     idx = np.empty(nc, np.int64)
     out = np.empty(nc, np.int64)
     m = 0
     n_out = 0
     for a in range(nc):
-        if c[a, 6] == 0.0 and _gap_rate(ci, cj, c, vel, a) > PRUNE_MARGIN:
+        if c[a, C_PN] == 0.0 and _gap_rate(ci, cj, c, vel, a) > PRUNE_MARGIN:
             out[n_out] = a
             n_out += 1
             continue
@@ -202,8 +210,8 @@ def _pruned_sweeps(ci, cj, c, vel, tol, it, last, w):
         if res <= tol:
             break
     for k in range(m):
-        c[idx[k], 6] = pc[k, 6]
-        c[idx[k], 7] = pc[k, 7]
+        c[idx[k], C_PN] = pc[k, C_PN]
+        c[idx[k], C_PT] = pc[k, C_PT]
     done = res <= tol
     if done:  # would a full sweep change a contact left out?
         for k in range(n_out):
@@ -226,7 +234,7 @@ def _gap_rate(ci, cj, c, vel, a):
     """u_n + b of contact ``a``: how fast its end-of-step gap opens (< 0: it would overlap)."""
     i = ci[a]
     j = cj[a]
-    return (vel[i, 0] - vel[j, 0]) * c[a, 0] + (vel[i, 1] - vel[j, 1]) * c[a, 1] + c[a, 2]
+    return (vel[i, V_X] - vel[j, V_X]) * c[a, C_NX] + (vel[i, V_Y] - vel[j, V_Y]) * c[a, C_NY] + c[a, C_B]
 
 
 @njit
@@ -288,15 +296,15 @@ def _local_solution(ci, cj, c, vel, a, w):
     times the plain correction (2D arrays; ``_sweep_stored`` writes the same out on flat ones)."""
     i = ci[a]
     j = cj[a]
-    nx = c[a, 0]
-    ny = c[a, 1]
-    dvx = vel[i, 0] - vel[j, 0]
-    dvy = vel[i, 1] - vel[j, 1]
+    nx = c[a, C_NX]
+    ny = c[a, C_NY]
+    dvx = vel[i, V_X] - vel[j, V_X]
+    dvy = vel[i, V_Y] - vel[j, V_Y]
     un = dvx * nx + dvy * ny
-    ut = -dvx * ny + dvy * nx - (vel[i, 2] + vel[j, 2])
-    pn_new = max(0.0, c[a, 6] - (un + c[a, 2]) * (c[a, 4] * w))
-    lim = c[a, 3] * pn_new
-    return pn_new, min(lim, max(-lim, c[a, 7] - ut * (c[a, 5] * w)))
+    ut = -dvx * ny + dvy * nx - (vel[i, V_S] + vel[j, V_S])
+    pn_new = max(0.0, c[a, C_PN] - (un + c[a, C_B]) * (c[a, C_IWN] * w))
+    lim = c[a, C_MU] * pn_new
+    return pn_new, min(lim, max(-lim, c[a, C_PT] - ut * (c[a, C_IWT] * w)))
 
 
 @njit
@@ -307,11 +315,11 @@ def _sweep_perm(ci, cj, c, vel, perm, w):
     for k in range(ci.shape[0]):
         a = perm[k]
         pn_new, pt_new = _local_solution(ci, cj, c, vel, a, w)
-        dpn = pn_new - c[a, 6]
-        dpt = pt_new - c[a, 7]
-        _push(vel, ci[a], cj[a], c[a, 0], c[a, 1], dpn, dpt)
-        c[a, 6] = pn_new
-        c[a, 7] = pt_new
+        dpn = pn_new - c[a, C_PN]
+        dpt = pt_new - c[a, C_PT]
+        _push(vel, ci[a], cj[a], c[a, C_NX], c[a, C_NY], dpn, dpt)
+        c[a, C_PN] = pn_new
+        c[a, C_PT] = pt_new
         num += dpn * dpn + dpt * dpt
         den += pn_new * pn_new + pt_new * pt_new
     return num, den
@@ -322,10 +330,10 @@ def set_status(c, status):
     """Contact states from the impulses: open (p_n = 0), sliding (|p_t| = mu p_n: the local
     solve clipped p_t to exactly this product), else sticking."""
     for a in range(c.shape[0]):
-        pn = c[a, 6]
+        pn = c[a, C_PN]
         if pn == 0.0:
             status[a] = OPEN
-        elif abs(c[a, 7]) == c[a, 3] * pn:
+        elif abs(c[a, C_PT]) == c[a, C_MU] * pn:
             status[a] = SLIDE
         else:
             status[a] = STICK
@@ -334,7 +342,7 @@ def set_status(c, status):
 def empty_contacts():
     """Zero-length contact arrays of the kernel dtypes."""
     return (np.empty(0, np.int32), np.empty(0, np.int32), np.empty(0, np.int64),
-            np.empty((0, 8)), np.empty(0, np.int8))
+            np.empty((0, N_CONTACT_COLUMNS)), np.empty(0, np.int8))
 
 
 @njit
@@ -350,8 +358,8 @@ def natural_residual(ci, cj, c, vel):
     num = 0.0
     den = 0.0
     for a in range(ci.shape[0]):
-        pn = c[a, 6]
-        pt = c[a, 7]
+        pn = c[a, C_PN]
+        pt = c[a, C_PT]
         pn_new, pt_new = _local_solution(ci, cj, c, vel, a, 1.0)
         num += (pn_new - pn) ** 2 + (pt_new - pt) ** 2
         den += pn * pn + pt * pt

@@ -48,7 +48,8 @@ import numpy as np
 
 from tiltpile.sim.detect import build_candidates, carry_impulses, interleave
 from tiltpile.sim.jit import njit
-from tiltpile.sim.solver import INTERLEAVED, apply_impulses, nlgs
+from tiltpile.sim.solver import (C_B, C_IWN, C_IWT, C_MU, C_NX, C_NY, C_PN, IMPULSE, INTERLEAVED,
+                                 N_CONTACT_COLUMNS, V_IM, V_S, V_X, V_Y, apply_impulses, nlgs)
 
 
 @njit
@@ -78,14 +79,14 @@ def contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall, s
             m = mu_wall
         if -gap > overlap:
             overlap = -gap
-        iw = 1.0 / (vel[i, 3] + vel[j, 3])
-        c[a, 0] = nx
-        c[a, 1] = ny
+        iw = 1.0 / (vel[i, V_IM] + vel[j, V_IM])
+        c[a, C_NX] = nx
+        c[a, C_NY] = ny
         # an overlap within the slop is left alone; a larger one is pushed back to the slop
-        c[a, 2] = gap / dt if gap >= 0.0 else min(0.0, gap + slop) / dt
-        c[a, 3] = m
-        c[a, 4] = iw
-        c[a, 5] = iw / 3.0
+        c[a, C_B] = gap / dt if gap >= 0.0 else min(0.0, gap + slop) / dt
+        c[a, C_MU] = m
+        c[a, C_IWN] = iw
+        c[a, C_IWT] = iw / 3.0
     return overlap
 
 
@@ -109,12 +110,12 @@ def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state
         gy = -gravity * math.cos(th)
         reach = 0.0
         for i in range(n):
-            if vel[i, 3] > 0.0:
-                vel[i, 0] += dt * gx
-                vel[i, 1] += dt * gy
+            if vel[i, V_IM] > 0.0:
+                vel[i, V_X] += dt * gx
+                vel[i, V_Y] += dt * gy
             ddx = pos[i, 0] - ref[i, 0]
             ddy = pos[i, 1] - ref[i, 1]
-            r = math.sqrt(ddx * ddx + ddy * ddy) + dt * math.sqrt(vel[i, 0] ** 2 + vel[i, 1] ** 2)
+            r = math.sqrt(ddx * ddx + ddy * ddy) + dt * math.sqrt(vel[i, V_X] ** 2 + vel[i, V_Y] ** 2)
             if not r <= reach:  # also catches NaN
                 reach = r
         if not reach < half:
@@ -122,8 +123,8 @@ def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state
             if mode == INTERLEAVED:
                 order = interleave(nci, ncj, n + 3)
                 nci, ncj, nkey = nci[order], ncj[order], nkey[order]
-            nc = np.zeros((nci.shape[0], 8))
-            carry_impulses(key, c[:, 6:8], nkey, nc[:, 6:8])
+            nc = np.zeros((nci.shape[0], N_CONTACT_COLUMNS))
+            carry_impulses(key, c[:, IMPULSE], nkey, nc[:, IMPULSE])
             ci, cj, key, c = nci, ncj, nkey, nc
             status = np.zeros(ci.shape[0], np.int8)
             perm = np.empty(ci.shape[0], np.int64)
@@ -139,13 +140,13 @@ def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state
         work = 0.0
         moved = 0.0
         for i in range(n):
-            im = vel[i, 3]
+            im = vel[i, V_IM]
             if im > 0.0:
-                pos[i, 0] += dt * vel[i, 0]
-                pos[i, 1] += dt * vel[i, 1]
-                rot[i] += dt * vel[i, 2] / radius[i]
-                ke += 0.5 * (vel[i, 0] ** 2 + vel[i, 1] ** 2 + 0.5 * vel[i, 2] ** 2) / im
-                work += dt * (gx * vel[i, 0] + gy * vel[i, 1]) / im
+                pos[i, 0] += dt * vel[i, V_X]
+                pos[i, 1] += dt * vel[i, V_Y]
+                rot[i] += dt * vel[i, V_S] / radius[i]
+                ke += 0.5 * (vel[i, V_X] ** 2 + vel[i, V_Y] ** 2 + 0.5 * vel[i, V_S] ** 2) / im
+                work += dt * (gx * vel[i, V_X] + gy * vel[i, V_Y]) / im
                 ddx = pos[i, 0] - ref[i, 0]
                 ddy = pos[i, 1] - ref[i, 1]
                 moved = max(moved, ddx * ddx + ddy * ddy)
@@ -206,7 +207,7 @@ class System:
         self.pos = np.ascontiguousarray(pos, dtype=np.float64).copy()
         self.rot = np.zeros(n)
         self.vel = np.zeros((n + 3, 4))
-        self.vel[:n, 3] = inv_mass
+        self.vel[:n, V_IM] = inv_mass
         self.ref = np.full((n, 2), np.inf)  # forces a build on the first step
         self.ci, self.cj, self.key, self.c, self.status = empty_contacts()
         self.perm = np.empty(0, np.int64)
@@ -259,9 +260,9 @@ class System:
         """Kinetic energy of the mobile grains (translation and rotation, I = m r^2 / 2) [m g d]."""
         v = self.vel[: self.n]
         m = np.zeros(self.n)
-        mob = v[:, 3] > 0
-        m[mob] = 1.0 / v[mob, 3]
-        return float(0.5 * np.sum(m * (v[:, 0] ** 2 + v[:, 1] ** 2 + 0.5 * v[:, 2] ** 2)))
+        mob = v[:, V_IM] > 0
+        m[mob] = 1.0 / v[mob, V_IM]
+        return float(0.5 * np.sum(m * (v[:, V_X] ** 2 + v[:, V_Y] ** 2 + 0.5 * v[:, V_S] ** 2)))
 
     # -- views used by the protocol and the tests ---------------------------------------------
     @property
@@ -270,7 +271,7 @@ class System:
 
     @property
     def omega(self) -> np.ndarray:
-        return self.vel[: self.n, 2] / self.radius
+        return self.vel[: self.n, V_S] / self.radius
 
     def contacts(self, active_only: bool = False):
         """Current contacts: (pair (C,2) int32 with wall ids < 0, force (C,2) = impulse / dt, status).
@@ -280,10 +281,10 @@ class System:
         """
         from tiltpile.sim.detect import wall_ids
 
-        p_n = self.c[:, 6]
-        keep = p_n > 0 if active_only else (p_n > 0) | (self.c[:, 2] <= 0)
+        p_n = self.c[:, C_PN]
+        keep = p_n > 0 if active_only else (p_n > 0) | (self.c[:, C_B] <= 0)
         pair = np.column_stack([self.ci[keep], wall_ids(self.cj[keep], self.n)]).astype(np.int32)
-        force = self.c[keep, 6:8] / self.params["dt"]
+        force = self.c[keep, IMPULSE] / self.params["dt"]
         return pair, force, self.status[keep].copy()
 
     def state(self) -> dict:

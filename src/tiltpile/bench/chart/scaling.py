@@ -61,7 +61,7 @@ def _time_steps(sysm: System, steps: int, theta0: float, dth: float) -> dict:
         upd += int(rec.updates[0])
     walls, its = np.array(walls), np.array(its)
     return dict(steps=steps, contacts=int(sysm.ci.shape[0]),
-                active_contacts=int((sysm.c[:, 6] > 0).sum()),
+                active_contacts=int((sysm.c[:, solver.C_PN] > 0).sum()),
                 ms_per_step=1e3 * float(np.median(walls)), ms_per_step_mean=1e3 * float(walls.mean()),
                 ns_per_update=1e9 * float(walls.sum()) / max(1, upd),
                 sweeps_mean=float(its.mean()), sweeps_median=float(np.median(its)),
