@@ -137,70 +137,103 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
     cutoff = float(p["cutoff"])
     f = ens.frames.sort_values(["run", "frame"], kind="stable")
     av = f["avalanching"].to_numpy(bool)
-    numbers: dict = {"cutoff": cutoff}
-    d: dict = {"cutoff": cutoff}
-
-    # (a) kinetic energy
     dep, ke_dens = _st.ke_threshold(f, ke_column, ke_bins_per_decade, ke_fit_quantiles, ke_factor,
-                                    ke_consecutive)
+                                    ke_consecutive)                                     # (a)
+    sustain = p["slide_sustain_deg"] if slide_sustain_deg is None else float(slide_sustain_deg)
+    slide_ke = p["slide_ke"] if p["slide_ke"] is not None else dep["threshold"]
+    th, onset_numbers = _first_onsets(f, ens.seeds, confidence)
+    sl, slide_numbers = _first_slides(f, ens.seeds, th, slide_ke, sustain, confidence)
+    lost_numbers, lost_data = _lost_fraction(f, cutoff, lost_bins_per_decade)         # (b)
+    seed = ens.sample_seed(sample_seed)
+    numbers = {"cutoff": cutoff, **onset_numbers, **slide_numbers,
+               "avalanching_fraction": float(av.mean()) if av.size else np.nan,
+               **_quiet_network(f, av, ens.seeds, confidence),
+               **_ke_numbers(f, av, dep, ke_column),
+               **lost_numbers,
+               **_robustness(f, cutoff, robustness_cutoffs, max_shift, p["merge_gap"]),
+               "sample_seed": seed}
+    data = {"cutoff": cutoff, "ke_density": ke_dens, "ke_fit": dep, "ke_column": ke_column,
+            **lost_data, **_sample(f, ens.seeds, seed, sl, ke_column, zn_bins)}       # (c), (d)
+    return numbers, data
+
+
+def _first_onsets(f: pd.DataFrame, seeds, confidence: float) -> tuple[np.ndarray, dict]:
+    """Each run's first onset by the cutoff (theta_m, deg, in ``seeds`` order; NaN without one)
+    and its numbers: per run, summary, bootstrap interval over runs, and the count of all onsets."""
+    th = first_onsets(f, seeds)
+    st = _stats(th)
+    return th, dict(theta_m_per_run=th, theta_m_mean=st["mean"], theta_m_std=st["std"],
+                    theta_m_min=st["min"], theta_m_max=st["max"], n_runs_with_onset=st["n"],
+                    **_ci("theta_m", _st.bootstrap_ci(th, confidence=confidence)),
+                    n_onsets=int(f["onset"].astype(bool).sum()))
+
+
+def _first_slides(f: pd.DataFrame, seeds, th: np.ndarray, slide_ke, sustain,
+                  confidence: float) -> tuple[np.ndarray, dict]:
+    """Each run's first large slide (deg, in ``seeds`` order; NaN: none before the end of its
+    tilt): kinetic energy per grain above ``slide_ke`` over at least ``sustain`` deg
+    (:func:`tiltpile.analysis.run_table`; no slide is looked for when ``slide_ke`` is not finite),
+    and its numbers, with the gap to the first onsets ``th`` and the smallest final tilt."""
+    rt = (run_table(f, slide_ke=float(slide_ke), slide_sustain_deg=sustain)
+          if np.isfinite(slide_ke) else None)
+    if rt is not None:
+        by = rt.set_index("run")
+        sl = np.array([float(by["theta_first_slide"].get(s, np.nan)) for s in seeds])
+        ends = rt["theta_end"].to_numpy(float)
+    else:
+        sl = np.full(len(seeds), np.nan)
+        ends = np.array([float(g["theta_deg"].max()) for _, g in f.groupby("run")])
+    ss = _stats(sl)
+    both = np.isfinite(sl) & np.isfinite(th)
+    return sl, dict(slide_ke=float(slide_ke), slide_sustain_deg=float(sustain),
+                    theta_slide_per_run=sl, theta_slide_mean=ss["mean"], theta_slide_std=ss["std"],
+                    theta_slide_min=ss["min"], theta_slide_max=ss["max"],
+                    n_runs_with_slide=ss["n"],
+                    **_ci("theta_slide", _st.bootstrap_ci(sl, confidence=confidence)),
+                    slide_minus_onset_mean=float(np.mean(sl[both] - th[both])) if both.any()
+                    else np.nan,
+                    theta_end_min=float(np.min(ends)) if ends.size else np.nan)
+
+
+def _quiet_network(f: pd.DataFrame, av: np.ndarray, seeds, confidence: float) -> dict:
+    """z, n_m and delta z_gen of the quiet frames (``av`` false): pooled means, the fraction below
+    the marginal line, and the means over runs of the per-run quiet means with their intervals."""
+    q = f[~av]
+    dzq = q["dz_gen"].to_numpy(float)
+    dzq = dzq[np.isfinite(dzq)]
+    out = dict(z_quiet_mean=_stats(q["z"])["mean"], n_m_quiet_mean=_stats(q["n_m"])["mean"],
+               dz_gen_quiet_mean=float(dzq.mean()) if dzq.size else np.nan,
+               quiet_below_fraction=float((dzq < 0).mean()) if dzq.size else np.nan)
+    pr = per_run_quiet(f, seeds)
+    for col, key in (("z", "z_quiet_run_mean"), ("n_m", "n_m_quiet_run_mean"),
+                     ("below", "quiet_below_run_mean")):
+        ci = _st.bootstrap_ci(pr[col], confidence=confidence)
+        out[key] = ci["estimate"]
+        out.update(_ci(key, ci))
+    return out
+
+
+def _ke_numbers(f: pd.DataFrame, av: np.ndarray, dep: dict, ke_column: str) -> dict:
+    """Panel a's numbers: the threshold and its fit (``dep``, :func:`tiltpile.analysis.stats.
+    ke_threshold`), and the fractions of avalanching and quiet frames above the threshold."""
     thr = dep["threshold"]
     ke = f[ke_column].to_numpy(float)
     ok = np.isfinite(ke)
     above = ke > thr if np.isfinite(thr) else np.zeros_like(ok)
+    return dict(ke_column=ke_column, ke_threshold=thr, ke_slope=dep["slope"],
+                ke_fit_range=[dep["fit_lo"], dep["fit_hi"]],
+                ke_threshold_avalanching_above=float(above[av & ok].mean())
+                if (av & ok).any() and np.isfinite(thr) else np.nan,
+                ke_threshold_quiet_above=float(above[~av & ok].mean())
+                if (~av & ok).any() and np.isfinite(thr) else np.nan)
 
-    # onsets both ways, per run
-    sustain = p["slide_sustain_deg"] if slide_sustain_deg is None else float(slide_sustain_deg)
-    slide_ke = p["slide_ke"] if p["slide_ke"] is not None else thr
-    rt = (run_table(f, slide_ke=float(slide_ke), slide_sustain_deg=sustain)
-          if np.isfinite(slide_ke) else None)
-    th = first_onsets(f, ens.seeds)
-    st = _stats(th)
-    numbers.update(theta_m_per_run=th, theta_m_mean=st["mean"], theta_m_std=st["std"],
-                   theta_m_min=st["min"], theta_m_max=st["max"], n_runs_with_onset=st["n"],
-                   **_ci("theta_m", _st.bootstrap_ci(th, confidence=confidence)),
-                   n_onsets=int(f["onset"].astype(bool).sum()))
-    if rt is not None:
-        by = rt.set_index("run")
-        sl = np.array([float(by["theta_first_slide"].get(s, np.nan)) for s in ens.seeds])
-        ends = rt["theta_end"].to_numpy(float)
-    else:
-        sl = np.full(len(ens.seeds), np.nan)
-        ends = np.array([float(g["theta_deg"].max()) for _, g in f.groupby("run")])
-    ss = _stats(sl)
-    both = np.isfinite(sl) & np.isfinite(th)
-    numbers.update(slide_ke=float(slide_ke), slide_sustain_deg=float(sustain),
-                   theta_slide_per_run=sl, theta_slide_mean=ss["mean"], theta_slide_std=ss["std"],
-                   theta_slide_min=ss["min"], theta_slide_max=ss["max"],
-                   n_runs_with_slide=ss["n"],
-                   **_ci("theta_slide", _st.bootstrap_ci(sl, confidence=confidence)),
-                   slide_minus_onset_mean=float(np.mean(sl[both] - th[both])) if both.any()
-                   else np.nan,
-                   theta_end_min=float(np.min(ends)) if ends.size else np.nan,
-                   avalanching_fraction=float(av.mean()) if av.size else np.nan)
 
-    # the quiet network, pooled and per run
-    q = f[~av]
-    dzq = q["dz_gen"].to_numpy(float)
-    dzq = dzq[np.isfinite(dzq)]
-    numbers.update(z_quiet_mean=_stats(q["z"])["mean"], n_m_quiet_mean=_stats(q["n_m"])["mean"],
-                   dz_gen_quiet_mean=float(dzq.mean()) if dzq.size else np.nan,
-                   quiet_below_fraction=float((dzq < 0).mean()) if dzq.size else np.nan)
-    pr = per_run_quiet(f, ens.seeds)
-    for col, key in (("z", "z_quiet_run_mean"), ("n_m", "n_m_quiet_run_mean"),
-                     ("below", "quiet_below_run_mean")):
-        ci = _st.bootstrap_ci(pr[col], confidence=confidence)
-        numbers[key] = ci["estimate"]
-        numbers.update(_ci(key, ci))
-
-    numbers.update(ke_column=ke_column, ke_threshold=thr, ke_slope=dep["slope"],
-                   ke_fit_range=[dep["fit_lo"], dep["fit_hi"]],
-                   ke_threshold_avalanching_above=float(above[av & ok].mean())
-                   if (av & ok).any() and np.isfinite(thr) else np.nan,
-                   ke_threshold_quiet_above=float(above[~av & ok].mean())
-                   if (~av & ok).any() and np.isfinite(thr) else np.nan)
-    d.update(ke_density=ke_dens, ke_fit=dep, ke_column=ke_column)
-
-    # (b) lost fraction: frames losing >= 1 contact on count-respecting log bins; the others apart
+def _lost_fraction(f: pd.DataFrame, cutoff: float,
+                   lost_bins_per_decade: int | None) -> tuple[dict, dict]:
+    """Panel b: the density per decade of the lost fraction of the frames losing >= 1 contact, on
+    count-respecting log bins (the frames losing none apart, in the normalisation), and the two
+    populations (:func:`tiltpile.analysis.stats.bimodality` of the dequantized log10 fraction).
+    Returns (numbers, plot data)."""
     lf = f["lost_fraction"].to_numpy(float)
     fin = np.isfinite(lf)
     nl = np.where(fin, f["n_lost"].to_numpy(float), np.nan)
@@ -218,29 +251,32 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
                              "density": count / (n_fin * lw)})    # per decade of the fraction
     else:
         lost = pd.DataFrame(columns=["left", "right", "center", "count", "density"])
-    numbers["lost_zero_fraction"] = float(np.mean(lf[fin] <= 0)) if n_fin else np.nan
-    numbers["lost_bins_per_decade"] = int(bpd)
+    zero = float(np.mean(lf[fin] <= 0)) if n_fin else np.nan
     y = _st.dequantized_log_fraction(nl, na, seed=0)
     bm = _st.bimodality(y, cutoff=np.log10(cutoff))
     bm["valley"] = float(10 ** bm["valley"]) if np.isfinite(bm["valley"]) else np.nan
-    numbers["lost_bimodality"] = bm
-    d["lost_density"] = lost
-    d["lost_zero_fraction"] = numbers["lost_zero_fraction"]
-    d["lost_mixture"] = bm
-    d["lost_n_finite"] = n_fin
+    numbers = {"lost_zero_fraction": zero, "lost_bins_per_decade": int(bpd), "lost_bimodality": bm}
+    data = {"lost_density": lost, "lost_zero_fraction": zero, "lost_mixture": bm,
+            "lost_n_finite": n_fin}
+    return numbers, data
 
-    # robustness of the onsets to the cutoff. The cutoffs are varied on purpose, so the
-    # library's ResolutionWarning (frames too far apart for a cutoff: the quiet frames' median
-    # lost fraction exceeds half of it) is not issued here but reported: onset_cutoffs_unresolved
-    # lists the cutoffs it flags in at least one run.
+
+def _robustness(f: pd.DataFrame, cutoff: float, robustness_cutoffs, max_shift: int,
+                merge_gap) -> dict:
+    """How far the onsets move when the cutoff is varied
+    (:func:`tiltpile.analysis.onset_robustness_ensemble` against ``cutoff``).
+
+    The cutoffs are varied on purpose, so the library's ResolutionWarning (frames too far apart
+    for a cutoff: the quiet frames' median lost fraction exceeds half of it) is not issued here but
+    reported: onset_cutoffs_unresolved lists the cutoffs it flags in at least one run."""
     unresolved = sorted({float(c) for c in robustness_cutoffs for _, g in f.groupby("run")
                          if frame_spacing_check(g["lost_fraction"].to_numpy(float), c,
                                                 warn=False) > SPACING_LIMIT})
     with warnings.catch_warnings():
         warnings.simplefilter("ignore", ResolutionWarning)
         rob = onset_robustness_ensemble(f, cutoffs=robustness_cutoffs, reference=cutoff,
-                                        max_shift=max_shift, merge_gap=p["merge_gap"])
-    numbers["onset_cutoffs_unresolved"] = unresolved
+                                        max_shift=max_shift, merge_gap=merge_gap)
+    out: dict = {"onset_cutoffs_unresolved": unresolved}
     if len(rob):
         by_cut = {f"{c:g}": _max_abs(g["shift_frames"]) for c, g in rob.groupby("cutoff")}
         first = rob[rob["onset"] == 0]
@@ -248,48 +284,58 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
         sh = np.abs(other["shift_frames"].to_numpy(float))
         sh[~np.isfinite(sh)] = np.inf                # no partner: moved by more than max_shift
         med = float(np.median(sh)) if sh.size else np.nan
-        numbers.update(onset_shift_max_frames=_max_abs(rob["shift_frames"]),
-                       onset_shift_median_frames=med if np.isfinite(med) else None,
-                       onset_shift_max_frames_by_cutoff=by_cut,
-                       onset_shift_max_deg=_max_abs(rob["shift_deg"]),
-                       first_onset_shift_max_frames=_max_abs(first["shift_frames"]),
-                       onset_unmatched_fraction=float(rob["shift_frames"].isna().mean()))
+        out.update(onset_shift_max_frames=_max_abs(rob["shift_frames"]),
+                   onset_shift_median_frames=med if np.isfinite(med) else None,
+                   onset_shift_max_frames_by_cutoff=by_cut,
+                   onset_shift_max_deg=_max_abs(rob["shift_deg"]),
+                   first_onset_shift_max_frames=_max_abs(first["shift_frames"]),
+                   onset_unmatched_fraction=float(rob["shift_frames"].isna().mean()))
     else:
-        numbers.update(onset_shift_max_frames=np.nan, onset_shift_median_frames=np.nan,
-                       onset_shift_max_frames_by_cutoff={},
-                       onset_shift_max_deg=np.nan, first_onset_shift_max_frames=np.nan,
-                       onset_unmatched_fraction=np.nan)
+        out.update(onset_shift_max_frames=np.nan, onset_shift_median_frames=np.nan,
+                   onset_shift_max_frames_by_cutoff={},
+                   onset_shift_max_deg=np.nan, first_onset_shift_max_frames=np.nan,
+                   onset_unmatched_fraction=np.nan)
+    return out
 
-    # (c), (d) sample run and the (z, n_m) density
-    seed = ens.sample_seed(sample_seed)
-    numbers["sample_seed"] = seed
-    d["sample"] = f[f["run"] == seed][["frame", "theta_deg", "z", "n_m", "dz_gen",
-                                        "avalanching", ke_column]].reset_index(drop=True)
-    d["sample_slide"] = float(sl[list(ens.seeds).index(seed)]) if seed in ens.seeds else np.nan
+
+def _sample(f: pd.DataFrame, seeds, seed, sl: np.ndarray, ke_column: str, zn_bins) -> dict:
+    """Plot data of panels c and d: the sample run ``seed`` (its frames and its first slide, from
+    the per-run slides ``sl`` in ``seeds`` order) and the (z, n_m) density of all frames (None
+    when there are too few)."""
+    out = {"sample": f[f["run"] == seed][["frame", "theta_deg", "z", "n_m", "dz_gen",
+                                           "avalanching", ke_column]].reset_index(drop=True),
+           "sample_slide": float(sl[list(seeds).index(seed)]) if seed in seeds else np.nan}
     try:
-        d["zn_density"] = _st.density_2d(f["z"], f["n_m"], bins=zn_bins)
+        out["zn_density"] = _st.density_2d(f["z"], f["n_m"], bins=zn_bins)
     except _st.InsufficientDataError:
-        d["zn_density"] = None
-    d["sample_seed"] = seed
-    return numbers, d
+        out["zn_density"] = None
+    out["sample_seed"] = seed
+    return out
 
 
 def plot(data: dict, numbers: dict):
     """Panels a-d (module docstring)."""
-    from matplotlib.colors import LogNorm
     height, gkw = style.stacked_layout([1.45, 1.45], [0.5], top_in=0.05, bottom_in=0.38,
                                        left=0.14, right=0.97)
     fig, axs = style.figure(2, 2, height=height, gridspec_kw=dict(gkw, wspace=0.42))
     (a, b), (c, dd) = axs
+    _plot_ke(a, data)
+    _plot_lost(b, data)
+    _plot_dz_gen(c, data)
+    _plot_zn(dd, data)
+    return fig
 
-    # (a) kinetic energy
+
+def _plot_ke(a, data: dict) -> None:
+    """Panel a: the kinetic-energy density, the fitted power law over its range, and the
+    threshold where the density leaves it."""
+    from matplotlib.ticker import NullFormatter
     ke, dep = data["ke_density"], data["ke_fit"]
     if len(ke):
         nz = ke["count"].to_numpy() > 0
         a.loglog(ke["center"][nz], ke["density"][nz], ls="none", marker="o", ms=2.5,
                  color=style.COLORS["quiet"])
         xc = ke["center"].to_numpy(float)
-        yc = ke["density"].to_numpy(float)
         if np.isfinite(dep["slope"]):
             x_hi = dep["threshold"] * 3 if np.isfinite(dep["threshold"]) else xc[-1]
             x = np.array([dep["fit_lo"] / 30, x_hi])
@@ -307,9 +353,15 @@ def plot(data: dict, numbers: dict):
     a.set_xlabel(unit + r" per grain ($\rho g d^3$)")
     a.set_ylabel(r"$P($" + unit + r"$)$")
     style.panel_label(a, "a", x=0.88)
+    a.xaxis.set_minor_formatter(NullFormatter())
+    a.yaxis.set_minor_formatter(NullFormatter())
 
-    # (b) lost fraction: density per decade of the frames losing >= 1 contact, the two-component
-    # fit of the module docstring, and the frames losing none (not on a log axis) as a number
+
+def _plot_lost(b, data: dict) -> None:
+    """Panel b: density per decade of the frames losing >= 1 contact (quiet and avalanching bins
+    either side of the cutoff), the two-Gaussian fit of the module docstring, the cutoff, and the
+    frames losing none (not on a log axis) as a number."""
+    from matplotlib.ticker import NullFormatter
     lo = data["lost_density"]
     bm = data["lost_mixture"]
     if len(lo):
@@ -341,13 +393,12 @@ def plot(data: dict, numbers: dict):
     b.legend(loc="upper right", bbox_to_anchor=(1.0, 0.83), handlelength=1.2, fontsize=5.5,
              borderaxespad=0.2, labelspacing=0.25)
     style.panel_label(b, "b")
-    from matplotlib.ticker import NullFormatter
-    for ax in (a,):
-        ax.xaxis.set_minor_formatter(NullFormatter())
-        ax.yaxis.set_minor_formatter(NullFormatter())
     b.xaxis.set_minor_formatter(NullFormatter())
 
-    # (c) delta z_gen of the sample run
+
+def _plot_dz_gen(c, data: dict) -> None:
+    """Panel c: delta z_gen of the sample run against theta, its avalanches shaded and its first
+    large slide dotted."""
     s = data["sample"]
     th = s["theta_deg"].to_numpy(float)
     dth = float(np.median(np.diff(th))) if th.size > 1 else 0.1
@@ -373,7 +424,12 @@ def plot(data: dict, numbers: dict):
     c.text(0.1, 0.965, f"run {data['sample_seed']}", transform=c.transAxes, ha="left", va="top",
            fontsize=6.5)
 
-    # (d) (z, n_m) density and the sample trace
+
+def _plot_zn(dd, data: dict) -> None:
+    """Panel d: the (z, n_m) density of all frames, the sample run's trace (quiet and
+    avalanching frames) and the marginal line z = 3 + n_m."""
+    from matplotlib.colors import LogNorm
+    s = data["sample"]
     zd = data["zn_density"]
     if zd is not None:
         h, xe, ye = zd
@@ -399,4 +455,3 @@ def plot(data: dict, numbers: dict):
     dd.set_ylabel(r"$n_m$")
     dd.legend(loc="upper right", handlelength=1.2, markerscale=1.8)
     style.panel_label(dd, "d")
-    return fig

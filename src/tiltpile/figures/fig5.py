@@ -128,60 +128,19 @@ def compute(ens, windows=(-14.4, -4.6, -0.75, -0.25), width: float = 0.5, s_min:
         # window, recorded as xi >= XI_UNCONSTRAINED (not drawn in the inset), not a notebook warning.
         warnings.filterwarnings("ignore", message="fit_power_law_cutoff: xi = ",
                                 category=RuntimeWarning)
-        quiet = ~cl["avalanching"].to_numpy(bool)
-        t = cl["theta_to_onset"].to_numpy(float)
-        pool = cl.loc[quiet & (t >= delta_pool[0]) & (t < delta_pool[1]), "size"].to_numpy()
-        pooled = _fit(pool, s_min, None, min_samples)
+        pooled, boot, n_runs = _pooled_delta(cl, delta_pool, s_min, min_samples, delta_bootstrap)
         xi_delta = pooled["delta"] if np.isfinite(pooled["delta"]) else float(delta_guide)
-        # bootstrap over runs: resample whole runs, pool their clusters, refit delta
-        sel = quiet & (t >= delta_pool[0]) & (t < delta_pool[1])
-        by_run = [g["size"].to_numpy() for _, g in cl[sel].groupby("run")]
-
-        def _delta_of(groups):
-            sizes = np.concatenate(groups) if groups else np.zeros(0, int)
-            with warnings.catch_warnings():
-                warnings.simplefilter("ignore")
-                return _fit(sizes, s_min, None, min_samples)["delta"]
-        boot = (bootstrap_runs_ci(by_run, _delta_of, n_resamples=delta_bootstrap, seed=0)
-                if delta_bootstrap and len(by_run) >= 2 else None)
-
-        rows, curves = [], []
-        for c in windows:
-            lo, hi = round(c - width / 2, 6), round(c + width / 2, 6)
-            free = cluster_size_windows(cl, fr, width=width, lo=lo, hi=hi, s_min=s_min,
-                                        min_samples=min_samples)
-            sel = cl[quiet & (t >= lo) & (t < hi)]["size"].to_numpy()
-            fix = _fit(sel, s_min, xi_delta, min_samples)
-            f0 = free.iloc[0]
-            rows.append({"label": f"{c:g}", "center": float(c), "n_frames": int(f0["n_frames"]),
-                         "n_clusters": int(f0["n_clusters"]), "delta": f0["delta"],
-                         "delta_err": f0["delta_err"], "xi": fix["xi"], "xi_err": fix["xi_err"],
-                         "mean_largest": f0["mean_largest"],
-                         "fit_error": fix["fit_error"] or f0["fit_error"]})
-            curves.append({"sizes": sel, "fit": fix["fit"]})
-        av = cl["avalanching"].to_numpy(bool)
-        sel = cl.loc[av, "size"].to_numpy()
-        afree = _fit(sel, s_min, None, min_samples)
-        afix = _fit(sel, s_min, xi_delta, min_samples)
-        fav = fr["avalanching"].to_numpy(bool)
-        rows.append({"label": "avalanche", "center": None, "n_frames": int(fav.sum()),
-                     "n_clusters": int(sel.size), "delta": afree["delta"],
-                     "delta_err": afree["delta_err"], "xi": afix["xi"], "xi_err": afix["xi_err"],
-                     "mean_largest": float(fr.loc[fav, "largest_cluster"].mean()) if fav.any()
-                     else np.nan,
-                     "fit_error": afix["fit_error"] or afree["fit_error"]})
-        curves.append({"sizes": sel, "fit": afix["fit"]})
-
+        rows, curves = _window_fits(cl, fr, windows, width, s_min, min_samples, xi_delta)
+        row, curve = _avalanche_fit(cl, fr, s_min, min_samples, xi_delta)
+        rows.append(row)
+        curves.append(curve)
         inset = cluster_size_windows(cl, fr, width=width, lo=inset_lo, hi=0.0, s_min=s_min,
                                      delta=xi_delta, min_samples=min_samples)
 
     dens = [discrete_log_binned_density(cv["sizes"][cv["sizes"] >= s_min], bins_per_decade,
                                         s_min=s_min) for cv in curves]
     trend = xi_trend(inset["center"], inset["xi"])
-    fq = fr[~fr["avalanching"].to_numpy(bool)]
-    ft = fq["theta_to_onset"].to_numpy(float)
-    far = fq.loc[ft < far_below, "largest_cluster"]
-    near = fq.loc[(ft >= -width) & (ft < 0.0), "largest_cluster"]
+    far, near = _s_max_far_near(fr, far_below, width)
     keys = ("center", "n_frames", "n_clusters", "delta", "delta_err", "xi", "xi_err",
             "mean_largest")
     numbers = {
@@ -189,19 +148,95 @@ def compute(ens, windows=(-14.4, -4.6, -0.75, -0.25), width: float = 0.5, s_min:
         "n_pooled": pooled["n_fit"], "delta_pool_range": list(delta_pool),
         "delta_pooled_ci_low": boot["low"] if boot else np.nan,
         "delta_pooled_ci_high": boot["high"] if boot else np.nan,
-        "delta_pooled_n_runs": len(by_run),
+        "delta_pooled_n_runs": n_runs,
         "xi_delta": float(xi_delta), "s_min": int(s_min), "width": float(width),
         "windows": {r["label"]: {k: r[k] for k in keys} for r in rows},
         "xi_spearman": trend["spearman"], "xi_slope_log10_per_deg": trend["slope_log10_xi_per_deg"],
         "xi_n_windows": trend["n"],
-        "s_max_far": float(far.mean()) if len(far) else np.nan,
-        "s_max_near": float(near.mean()) if len(near) else np.nan,
+        "s_max_far": far, "s_max_near": near,
     }
     data = {"rows": pd.DataFrame(rows), "densities": dens,
             "fits": [cv["fit"] for cv in curves], "inset": inset, "s_min": int(s_min),
             "delta_guide": float(delta_guide), "xi_delta": float(xi_delta),
             "far_below": float(far_below)}
     return numbers, data
+
+
+def _pooled_delta(cl: pd.DataFrame, delta_pool, s_min: int, min_samples: int,
+                  delta_bootstrap: int) -> tuple[dict, dict | None, int]:
+    """Step 1 of the module docstring: one fit (delta and xi free) of the quiet clusters with
+    theta - theta_m in [delta_pool[0], delta_pool[1]), and its interval over runs (whole runs
+    resampled, their clusters pooled and refitted; None with fewer than 2 runs or no resamples).
+    Returns (the fit of :func:`_fit`, the interval, the number of runs with such clusters)."""
+    quiet = ~cl["avalanching"].to_numpy(bool)
+    t = cl["theta_to_onset"].to_numpy(float)
+    sel = quiet & (t >= delta_pool[0]) & (t < delta_pool[1])
+    pooled = _fit(cl.loc[sel, "size"].to_numpy(), s_min, None, min_samples)
+    by_run = [g["size"].to_numpy() for _, g in cl[sel].groupby("run")]
+
+    def _delta_of(groups):
+        sizes = np.concatenate(groups) if groups else np.zeros(0, int)
+        with warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            return _fit(sizes, s_min, None, min_samples)["delta"]
+    boot = (bootstrap_runs_ci(by_run, _delta_of, n_resamples=delta_bootstrap, seed=0)
+            if delta_bootstrap and len(by_run) >= 2 else None)
+    return pooled, boot, len(by_run)
+
+
+def _window_fits(cl: pd.DataFrame, fr: pd.DataFrame, windows, width: float, s_min: int,
+                 min_samples: int, xi_delta: float) -> tuple[list, list]:
+    """Step 2 of the module docstring for the main panel's windows of theta - theta_m (centres
+    ``windows``, each ``width`` wide): the free fit and <S_max>
+    (:func:`tiltpile.analysis.stats.cluster_size_windows`) and xi with delta held at ``xi_delta``.
+    Returns (one row per window, one curve per window: its sizes and the fixed-delta fit)."""
+    quiet = ~cl["avalanching"].to_numpy(bool)
+    t = cl["theta_to_onset"].to_numpy(float)
+    rows, curves = [], []
+    for c in windows:
+        lo, hi = round(c - width / 2, 6), round(c + width / 2, 6)
+        free = cluster_size_windows(cl, fr, width=width, lo=lo, hi=hi, s_min=s_min,
+                                    min_samples=min_samples)
+        sel = cl[quiet & (t >= lo) & (t < hi)]["size"].to_numpy()
+        fix = _fit(sel, s_min, xi_delta, min_samples)
+        f0 = free.iloc[0]
+        rows.append({"label": f"{c:g}", "center": float(c), "n_frames": int(f0["n_frames"]),
+                     "n_clusters": int(f0["n_clusters"]), "delta": f0["delta"],
+                     "delta_err": f0["delta_err"], "xi": fix["xi"], "xi_err": fix["xi_err"],
+                     "mean_largest": f0["mean_largest"],
+                     "fit_error": fix["fit_error"] or f0["fit_error"]})
+        curves.append({"sizes": sel, "fit": fix["fit"]})
+    return rows, curves
+
+
+def _avalanche_fit(cl: pd.DataFrame, fr: pd.DataFrame, s_min: int, min_samples: int,
+                   xi_delta: float) -> tuple[dict, dict]:
+    """Step 2 of the module docstring for the clusters of the avalanching frames: the row
+    ``avalanche`` (free delta, xi at ``xi_delta``, <S_max> of the avalanching frames) and its
+    curve."""
+    av = cl["avalanching"].to_numpy(bool)
+    sel = cl.loc[av, "size"].to_numpy()
+    afree = _fit(sel, s_min, None, min_samples)
+    afix = _fit(sel, s_min, xi_delta, min_samples)
+    fav = fr["avalanching"].to_numpy(bool)
+    row = {"label": "avalanche", "center": None, "n_frames": int(fav.sum()),
+           "n_clusters": int(sel.size), "delta": afree["delta"],
+           "delta_err": afree["delta_err"], "xi": afix["xi"], "xi_err": afix["xi_err"],
+           "mean_largest": float(fr.loc[fav, "largest_cluster"].mean()) if fav.any()
+           else np.nan,
+           "fit_error": afix["fit_error"] or afree["fit_error"]}
+    return row, {"sizes": sel, "fit": afix["fit"]}
+
+
+def _s_max_far_near(fr: pd.DataFrame, far_below: float, width: float) -> tuple[float, float]:
+    """<S_max> over the quiet frames with theta - theta_m < far_below, and over those of the last
+    window before the onset [-width, 0) (NaN where there are none)."""
+    fq = fr[~fr["avalanching"].to_numpy(bool)]
+    ft = fq["theta_to_onset"].to_numpy(float)
+    far = fq.loc[ft < far_below, "largest_cluster"]
+    near = fq.loc[(ft >= -width) & (ft < 0.0), "largest_cluster"]
+    return (float(far.mean()) if len(far) else np.nan,
+            float(near.mean()) if len(near) else np.nan)
 
 
 def plot(data: dict, numbers: dict):

@@ -7,7 +7,8 @@ from __future__ import annotations
 
 import math
 
-from .judging import AGREES, DISAGREES, INCONCLUSIVE, Claim, Rule, _ci, _f, _num, _overlaps, _verdict
+from .judging import (AGREES, DISAGREES, INCONCLUSIVE, Claim, Rule, _ci, _f, _num, _overlaps,
+                      _verdict)
 
 
 def _theta_m(n: dict):
