@@ -111,7 +111,7 @@ FIG_JSON := $(patsubst notebooks/%.ipynb,$(FIGURES)/%.json,$(NOTEBOOKS))
 ANALYSIS := $(wildcard src/tiltpile/analysis/*.py src/tiltpile/analysis/*/*.py)
 FIG_COMMON := $(wildcard src/tiltpile/__init__.py src/tiltpile/figures/__init__.py \
                          src/tiltpile/figures/style.py src/tiltpile/figures/data.py \
-                         src/tiltpile/record.py src/tiltpile/store.py) \
+                         src/tiltpile/record.py src/tiltpile/store/*.py) \
               $(filter-out %/structure.py %/zcount.py,$(ANALYSIS))
 FIG_USES_fig1 := src/tiltpile/figures/snapshot.py
 FIG_USES_fig3 := src/tiltpile/figures/snapshot.py
@@ -267,7 +267,7 @@ PREP_PARAMS = {"data_dirs": [$(subst $(prep_space),$(prep_comma),$(foreach d,$(P
 # what `tiltpile zcount` computes with: its study module and what that imports, and the command
 ZCOUNT_CODE := $(wildcard src/tiltpile/__init__.py src/tiltpile/figures/__init__.py \
                           src/tiltpile/figures/style.py src/tiltpile/figures/zcount.py \
-                          src/tiltpile/record.py src/tiltpile/store.py src/tiltpile/cli/zcount.py) \
+                          src/tiltpile/record.py src/tiltpile/store/*.py src/tiltpile/cli/zcount.py) \
                $(filter-out %/ensemble_data.py %/structure.py,$(ANALYSIS))
 .PHONY: preparation preparation-runs zcount
 preparation-runs: | $(STAMP) check-nb

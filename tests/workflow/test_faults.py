@@ -302,14 +302,14 @@ def test_disk_full_at_write_time_is_one_line_and_resumes(tmp_path, ref, monkeypa
 
 def test_disk_full_while_checkpointing_leaves_no_temporary_file(tmp_path, ref, monkeypatch, capsys):
     out = tmp_path / "run.h5"
-    original = store._fsync
+    original = store.writer._fsync  # the writer calls it: patch it there
 
     def full(path):
         if ".tmp" in Path(path).name:
             raise OSError(errno.ENOSPC, "No space left on device", str(path))
         original(path)
 
-    monkeypatch.setattr(store, "_fsync", full)
+    monkeypatch.setattr(store.writer, "_fsync", full)
     rc, lines = _cli(capsys, "simulate", *SETS, "--seed", "3", "--out", out, "--quiet")
     monkeypatch.undo()
     assert rc == 1
@@ -470,7 +470,7 @@ def test_stale_checkpoint_of_a_finished_run_is_removed(tmp_path, tiny, ref, monk
         if Path(dst) == out:
             raise _Killed
 
-    monkeypatch.setattr(store.os, "replace", dying)
+    monkeypatch.setattr(store.writer.os, "replace", dying)
     with pytest.raises(_Killed):
         simulate(tiny, 3, out, progress=False)
     monkeypatch.undo()

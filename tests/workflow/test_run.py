@@ -214,7 +214,7 @@ def test_run_killed_while_checkpointing_resumes_from_the_previous_checkpoint(
             replace(src, dst)
         return dying_replace
 
-    _run_until_killed(monkeypatch, cfg, out, store.os, "replace", dying)
+    _run_until_killed(monkeypatch, cfg, out, store.writer.os, "replace", dying)
     with h5py.File(checkpoint_path(out)) as g:
         k = int(g.attrs["n_frames"])  # the third checkpoint's frames
     assert part_path(out).exists() and k > 0

@@ -1,7 +1,7 @@
 """One source for the run file's layout: ``store.LAYOUT`` (datasets) and ``store.ATTRS`` (the
 attributes of the root and of the attribute-only groups) are what the writer writes, and
-docs/run-file.md lists every one of them (datasets with their units); store.py's docstring points
-to them instead of keeping a third copy."""
+docs/run-file.md lists every one of them (datasets with their units); the store package's
+docstring points to them instead of keeping a third copy."""
 
 from __future__ import annotations
 

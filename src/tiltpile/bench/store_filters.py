@@ -58,8 +58,8 @@ def _frames(source: Path) -> tuple[dict, list]:
 
 def _write(head: dict, frames: list, out: Path, variant: str) -> float:
     filters = VARIANTS[variant]
-    saved = store.FILTERS
-    store.FILTERS = filters
+    saved = store.writer.FILTERS  # what the writer creates its datasets with
+    store.writer.FILTERS = filters
     try:
         t0 = time.perf_counter()
         w = store.RunWriter(out, config_json=head["config"], config_hash=head["config_hash"],
@@ -81,7 +81,7 @@ def _write(head: dict, frames: list, out: Path, variant: str) -> float:
         w.finish()
         return time.perf_counter() - t0
     finally:
-        store.FILTERS = saved
+        store.writer.FILTERS = saved
 
 
 def _read_all(path: Path) -> float:
