@@ -29,6 +29,11 @@ from pathlib import Path
 import nbformat
 import pytest
 
+# make as a user types it: the suite itself runs under `make test`, whose MAKELEVEL and MAKEFLAGS
+# would make these makes print "Entering directory" lines and inherit its flags
+MAKE_ENV = {k: v for k, v in os.environ.items()
+            if k not in ("MAKELEVEL", "MAKEFLAGS", "MFLAGS", "MAKEOVERRIDES")}
+
 ROOT = Path(__file__).resolve().parents[2]
 SRC = ROOT / "src"
 
@@ -162,7 +167,7 @@ def tree(tmp_path_factory) -> Path:
 def _plan(tree: Path, *edited) -> set[str]:
     """The targets `make -n figures preparation zcount` would rebuild if ``edited`` were edited."""
     args = ["make", "-n", *[f"-W{e}" for e in edited], *[f"-o{s}" for s in OLD_STAMPS], *PLAN_ARGS]
-    r = subprocess.run(args, cwd=tree, capture_output=True, text=True, timeout=120)
+    r = subprocess.run(args, cwd=tree, capture_output=True, text=True, timeout=120, env=MAKE_ENV)
     assert r.returncode == 0, r.stderr
     out = set(re.findall(r"--no-progress-bar notebooks/(\w+)\.ipynb", r.stdout))
     out -= {"run_diagnostics"}
@@ -227,7 +232,7 @@ def _make(tree: Path, *args) -> subprocess.CompletedProcess:
     import sys
 
     return subprocess.run(["make", f"PY={sys.executable}", *args], cwd=tree, capture_output=True,
-                          text=True, timeout=300)
+                          text=True, timeout=300, env=MAKE_ENV)
 
 
 @pytest.mark.parametrize("goal, nb, named", [
@@ -258,7 +263,7 @@ def test_each_notebook_gets_the_parameters_it_declares(tree):
     import sys
 
     r = subprocess.run(["make", "-n", "figures", "VARIANT=t", "NB=-p eps 0.01 -p ke_factor 3"],
-                       cwd=tree, capture_output=True, text=True, timeout=120)
+                       cwd=tree, capture_output=True, text=True, timeout=120, env=MAKE_ENV)
     assert r.returncode == 0, r.stderr
     lines = r.stdout.splitlines()
     assert "tiltpile.figures.parameters check notebooks/fig1_isostaticity.ipynb" in lines[0]
