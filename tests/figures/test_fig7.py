@@ -12,7 +12,7 @@ import numpy as np  # noqa: E402
 import pandas as pd  # noqa: E402
 import pytest  # noqa: E402
 
-from tiltpile.figures import fig7  # noqa: E402
+from tiltpile.figures import data, fig7  # noqa: E402
 
 
 def _run(run, theta, avalanching, spanning, rigid, dz=0.1):
@@ -68,10 +68,10 @@ def test_window_means_and_where_spanning_is_lost():
     assert path["n_frames"].tolist() == [16] * 8
     assert path["rigid_fraction"].iloc[0] == pytest.approx(1.0)
     # the spanning fraction crosses 1/2 two degrees before the onset (interpolated)
-    assert fig7.first_below(path, "spanning", 0.5) == pytest.approx(-2.0, abs=0.2)
-    assert np.isnan(fig7.first_below(path.assign(spanning=1.0), "spanning", 0.5))
-    assert np.isnan(fig7.first_below(path, "dz_gen", 0.0))          # dz_gen = 0.1 throughout
-    assert fig7.first_below(path, "dz_gen", 0.2) == path["theta_to_onset"].iloc[0]
+    assert data.first_below(path, "spanning", 0.5) == pytest.approx(-2.0, abs=0.2)
+    assert np.isnan(data.first_below(path.assign(spanning=1.0), "spanning", 0.5))
+    assert np.isnan(data.first_below(path, "dz_gen", 0.0))          # dz_gen = 0.1 throughout
+    assert data.first_below(path, "dz_gen", 0.2) == path["theta_to_onset"].iloc[0]
 
 
 def test_compute_refuses_tables_without_the_rigidity_columns():

@@ -16,7 +16,8 @@ import pandas as pd
 from tiltpile.analysis import DEFAULT_PARAMS
 from tiltpile.analysis.ensemble_data import Ensemble, load_ensemble
 
-__all__ = ["Ensemble", "load", "load_ensemble", "snapshot", "analysis_params", "per_run_quiet"]
+__all__ = ["Ensemble", "load", "load_ensemble", "snapshot", "analysis_params", "per_run_quiet",
+           "first_below"]
 
 # what a figure's JSON names under "analysis" whatever their values: the lost-contact criterion
 ALWAYS_RECORDED = ("cutoff", "lost_gap")
@@ -76,3 +77,19 @@ def snapshot(ens: Ensemble, seed: int, frame: int) -> dict:
                 "pair": pair, "force": force, "status": status, "theta_deg": float(r.theta_deg[frame]),
                 "box_length": r.box_length, "next": None if last else r.contacts(frame + 1),
                 "next_position": None if last else r.position(frame + 1)}
+
+
+def first_below(path: pd.DataFrame, column: str, level: float) -> float:
+    """theta - theta_m where ``path[column]`` first drops below ``level``, walking from far to near
+    (linear interpolation between windows; the first window if it starts below; NaN if it never
+    does). With ``spanning`` and 1/2: where most quiet frames stop spanning; with ``dz_gen`` and 0:
+    where the mean quiet frame crosses the marginal line z = 3 + n_m (Figs. 1 and 7)."""
+    s = path[column].to_numpy(float) - level
+    t = path["theta_to_onset"].to_numpy(float)
+    below = np.flatnonzero(s < 0)
+    if below.size == 0:
+        return np.nan
+    i = int(below[0])
+    if i == 0:
+        return float(t[0])
+    return float(t[i - 1] + (t[i] - t[i - 1]) * s[i - 1] / (s[i - 1] - s[i]))

@@ -25,7 +25,7 @@ import pandas as pd
 from tiltpile.analysis import contacts as _ct
 from tiltpile.analysis.stats import bootstrap_ci, window_edges
 
-from . import style
+from . import data, style
 from .snapshot import draw_snapshot, load_snapshot, pick_avalanche_frame, snapshot_extent
 
 NAME = "fig1_isostaticity"
@@ -77,15 +77,7 @@ def path_crossing(path: pd.DataFrame) -> float:
     with delta z_gen >= 0 and the first with delta z_gen < 0; the first point itself if the path
     starts below the line; NaN if it never goes below.
     """
-    dz = path["dz_gen"].to_numpy(float)
-    t = path["theta_to_onset"].to_numpy(float)
-    below = np.flatnonzero(dz < 0)
-    if below.size == 0:
-        return np.nan
-    i = int(below[0])
-    if i == 0:
-        return float(t[0])
-    return float(t[i - 1] + (t[i] - t[i - 1]) * dz[i - 1] / (dz[i - 1] - dz[i]))
+    return data.first_below(path, "dz_gen", 0.0)
 
 
 def _mean(x) -> float:

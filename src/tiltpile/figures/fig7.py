@@ -76,22 +76,6 @@ def window_means(frames: pd.DataFrame, lo: float = -15.0, width: float = 0.5,
     return pd.DataFrame(rows, columns=cols)
 
 
-def first_below(path: pd.DataFrame, column: str, level: float) -> float:
-    """theta - theta_m where ``path[column]`` first drops below ``level``, walking from far to near
-    (linear interpolation between windows; the first window if it starts below; NaN if it never
-    does). With ``spanning`` and 1/2: where most quiet frames stop spanning; with ``dz_gen`` and 0:
-    where the mean quiet frame crosses the marginal line z = 3 + n_m (as Fig. 1's path)."""
-    s = path[column].to_numpy(float) - level
-    t = path["theta_to_onset"].to_numpy(float)
-    below = np.flatnonzero(s < 0)
-    if below.size == 0:
-        return np.nan
-    i = int(below[0])
-    if i == 0:
-        return float(t[0])
-    return float(t[i - 1] + (t[i] - t[i - 1]) * s[i - 1] / (s[i - 1] - s[i]))
-
-
 def onset_states(frames: pd.DataFrame) -> pd.DataFrame:
     """For every onset preceded by a quiet frame: whether the largest rigid cluster spans at the
     last quiet frame before it and at the onset frame, and how long before the onset the pile
@@ -213,9 +197,9 @@ def compute(ens, sample_seed: int | None = None, snapshot_offset_deg: float = SN
     loss = loss[np.isfinite(loss)]
     numbers["loss_to_onset_median"] = float(np.median(loss)) if loss.size else np.nan
     path = window_means(fr, path_lo, path_width, min_frames)
-    numbers["spanning_loss_theta_to_onset"] = (first_below(path, "spanning", 0.5) if len(path)
+    numbers["spanning_loss_theta_to_onset"] = (data.first_below(path, "spanning", 0.5) if len(path)
                                                else np.nan)
-    numbers["marginal_crossing_theta_to_onset"] = (first_below(path, "dz_gen", 0.0) if len(path)
+    numbers["marginal_crossing_theta_to_onset"] = (data.first_below(path, "dz_gen", 0.0) if len(path)
                                                    else np.nan)
 
     seed = ens.sample_seed(sample_seed)
