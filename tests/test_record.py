@@ -25,7 +25,9 @@ def _tables():
     clusters = pd.DataFrame({
         "run": np.full(3, 7, np.int64), "frame": np.array([0, 2, 2], np.int64),
         "cluster": np.array([0, 0, 1], np.int64), "size": np.array([5, 2, 1], np.int64),
-        "orientation_deg": [12.5, np.nan, np.nan], "avalanching": [False, True, True]})
+        "orientation_deg": [12.5, np.nan, np.nan], "avalanching": [False, True, True],
+        "speed_max": np.float32([1e-5, 0.3, 7e-12]).astype(np.float64),
+        "z": [3.1, -0.0, 4.0]})
     return frames, clusters
 
 
@@ -65,6 +67,11 @@ def test_a_record_reads_back_bit_for_bit(tmp_path):
     with np.load(path) as z:
         assert z["frames__frame"].dtype == np.int8 and z["frames__n_lost"].dtype == np.int32
         assert z["frames__step"].dtype == np.int64 and z["clusters__size"].dtype == np.int8
+        # float64 columns of float32 numbers as float32; the others (3.1, 0.05) as they are
+        assert z["clusters__speed_max"].dtype == np.float32
+        assert z["clusters__orientation_deg"].dtype == np.float32
+        assert z["clusters__z"].dtype == np.float64 and z["frames__theta_deg"].dtype == np.float64
+    assert np.signbit(rec.clusters["z"].iloc[1])
     # the meta member alone (cheap) says the same
     assert read_meta(path) == rec.meta
     assert [p.name for p in record.record_files(tmp_path)] == ["run_0007.npz"]

@@ -23,9 +23,10 @@ Layout: a zip of ``.npy`` members (``numpy.load`` reads it; no pickle), ``run_SS
     pictures__pair        (C, 2) int32, pictures__force (C, 2) float64 [f_n, f_t in m g],
     pictures__status      (C,) int8     as the run file's contacts
 
-Table columns are stored with the smallest integer type that holds their values (ids, counts;
-checked lossless) and read back with their original dtype (``meta["columns"]``); every other
-column as it is. A record's tables are those the writer gave, bit for bit.
+Table columns are stored with the smallest integer type that holds their values (ids, counts),
+float64 columns whose values are all float32 numbers as float32 (the cluster table's
+``FLOAT32_CLUSTER_COLUMNS``), both checked lossless, and read back with their original dtype
+(``meta["columns"]``); every other column as it is. A record's tables are those the writer gave, bit for bit.
 
 ``meta`` (JSON): format, format_version, tiltpile_version (of the writer), analysis_code and
 analysis_params (of the tables), seed, config (dict), config_hash, n_grains, n_frames,
@@ -88,8 +89,16 @@ def record_files(directory) -> list[Path]:
 
 
 def _compact(a: np.ndarray) -> np.ndarray:
-    """An integer column in the smallest integer type holding its values (lossless)."""
-    if a.dtype.kind not in "iu" or a.size == 0:
+    """An integer column in the smallest integer type holding its values, a float64 column
+    whose every value is a float32 as float32 (both lossless)."""
+    if a.size == 0:
+        return a
+    if a.dtype == np.float64:
+        with np.errstate(over="ignore"):     # beyond float32's range: inf, not equal
+            f = a.astype(np.float32)
+        same = (f.astype(np.float64) == a) | (np.isnan(a) & np.isnan(f))
+        return f if same.all() else a
+    if a.dtype.kind not in "iu":
         return a
     lo, hi = int(a.min()), int(a.max())
     for t in _SMALL_INTS:
@@ -106,7 +115,8 @@ def _table_members(prefix: str, df: pd.DataFrame) -> tuple[dict, list]:
         if a.dtype.kind not in "biuf":
             raise RecordError(f"column {prefix}.{c} has dtype {a.dtype}: a record holds numbers only")
         small = _compact(a)
-        if small is not a and not np.array_equal(small.astype(a.dtype), a):  # range-checked: never
+        lossless = np.array_equal(small.astype(a.dtype), a, equal_nan=small.dtype.kind == "f")
+        if small is not a and not lossless:   # checked in _compact: never
             raise RecordError(f"column {prefix}.{c} does not fit {small.dtype}")
         members[f"{prefix}__{c}"] = small
         dtypes.append([str(c), a.dtype.str])

@@ -16,6 +16,7 @@ import pandas as pd
 import pytest
 
 from tiltpile.analysis import observables as ob
+from tiltpile.analysis import tables
 from tiltpile.analysis import FRAME_COLUMNS, CLUSTER_COLUMNS, compute_observables, load_observables
 
 # the hand-built run has 3 frames and ~40 contacts, far below what the 2% cutoff resolves: the
@@ -107,6 +108,11 @@ def test_run_observables_by_hand(tiny_run):
     assert (c["z"], c["n_m"], c["dz"]) == pytest.approx((6.0, 0.5, 5.5))
     assert c["orientation_deg"] == pytest.approx(90.0 - 0.05)
     assert c["theta_deg"] == pytest.approx(0.05) and bool(c["avalanching"])
+    # orientation and speed are held to float32 precision (a record stores them in 4 bytes)
+    for col in tables.FLOAT32_CLUSTER_COLUMNS:
+        v = cl[col].to_numpy()
+        assert v.dtype == np.float64 and np.array_equal(v.astype(np.float32).astype(float), v)
+    assert c["orientation_deg"] != 90.0 - 0.05      # not a float32: rounded
 
 
 def test_threshold_criterion_and_bulk_clusters(tiny_run):

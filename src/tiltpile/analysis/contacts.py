@@ -231,14 +231,17 @@ def bottom_layer(pair: np.ndarray, gaps: np.ndarray, fixed: np.ndarray,
 
 
 def bulk_mask(position: np.ndarray, radius: np.ndarray, fixed: np.ndarray, pair: np.ndarray,
-              box_length: float, ray_spacing: float = 0.1, touch_tol: float = 0.05) -> np.ndarray:
+              box_length: float, ray_spacing: float = 0.1, touch_tol: float = 0.05,
+              top: np.ndarray | None = None) -> np.ndarray:
     """Bulk grains: mobile grains that are neither in the top nor in the bottom single layer.
 
-    See :func:`top_layer` and :func:`bottom_layer` for how the layers are found. Returns (N,) bool.
+    See :func:`top_layer` and :func:`bottom_layer` for how the layers are found; ``top``: the
+    top layer when the caller has it already (None: found here). Returns (N,) bool.
     """
     gaps = contact_gaps(pair, position, radius, box_length)
     bot = bottom_layer(pair, gaps, fixed, touch_tol)
-    top = top_layer(position, radius, fixed, box_length, ray_spacing)
+    if top is None:
+        top = top_layer(position, radius, fixed, box_length, ray_spacing)
     return ~np.asarray(fixed, dtype=bool) & ~bot & ~top
 
 

@@ -115,15 +115,18 @@ CLUSTER_DOCS = {
     "z": "coordination of the cluster's grains (every active contact counted)",
     "n_m": "mobilization of the cluster's grains",
     "dz": "z - n_m (paper, Fig. 5; 2D)",
-    "orientation_deg": "angle between the long axis and gravity (deg, 0 = along gravity)",
+    "orientation_deg": "angle between the long axis and gravity (deg, 0 = along gravity; "
+                       "to float32 precision)",
     "phi_deg": "angle of the long axis to the box's x axis (deg)",
     "rg_long": "gyration radius along the long axis (d)",
     "rg_short": "gyration radius along the short axis (d)",
     "x_com": "centre of the cluster's grains, x (d)",
     "y_com": "centre of the cluster's grains, y (d)",
     "n_unstable": "grains failing the single-grain criterion z_i - m_i / 2 >= 3/2",
-    "speed_max": "largest speed of a grain of the cluster (sqrt(g d))",
+    "speed_max": "largest speed of a grain of the cluster (sqrt(g d); to float32 precision)",
 }
+# cluster columns held to float32 precision (frame_observables)
+FLOAT32_CLUSTER_COLUMNS = ("orientation_deg", "speed_max")
 FRAME_COLUMNS = list(FRAME_DOCS)
 CLUSTER_COLUMNS = list(CLUSTER_DOCS)
 
@@ -254,9 +257,9 @@ def frame_contacts(radius, fixed, box_length, position, pair, force, status, *, 
     active = _ct.active_mask(force)
     mu_c = mu if mu_wall is None else np.where(pair[:, 1] < 0, mu_wall, mu)
     mobil = _ct.mobilized_mask(force, status, mu_c, eps)
-    bulk = _ct.bulk_mask(position, radius, fixed, pair, box_length, p["ray_spacing"],
-                        p["touch_tol"])
     top = _ct.top_layer(position, radius, fixed, box_length, p["ray_spacing"])
+    bulk = _ct.bulk_mask(position, radius, fixed, pair, box_length, p["ray_spacing"],
+                         p["touch_tol"], top=top)
     include = bulk if cluster_region == "bulk" else mobile
     labels = _cl.critical_clusters(n, pair, active, mobil, include, link)
     return {"pair": pair, "force": force, "status": status, "active": active,
@@ -303,6 +306,10 @@ def frame_observables(radius, fixed, box_length, position, velocity, omega, pair
     if k:
         np.maximum.at(vmax, labels[inc], speed[inc])
     ctab["speed_max"] = vmax
+    # the two columns without a small exact form are held to float32 precision (7 digits, far
+    # below what they resolve): a record then stores them in 4 bytes, losslessly
+    for c in FLOAT32_CLUSTER_COLUMNS:
+        ctab[c] = ctab[c].to_numpy(np.float64).astype(np.float32).astype(np.float64)
     rest = bulk & ~bc["rattler"] & (labels < 0)
     z_rest, _, n_rest = _ct.coordination(bc["z_i"], bc["m_i"], rest)
     e_t, e_r = _ct.kinetic_energy(radius, velocity, omega)

@@ -20,9 +20,10 @@ A record holds, for one finished run:
   asked for (``sample_seed``). Up to four frames: ~0.17 MB at 1000 grains.
 
 Sizes (measured): 0.55 MB for a 1000-grain run of 441 frames (18 600 cluster rows at ~20 bytes,
-four picture frames 0.17 MB), 0.15 MB for a smoke run; estimated for a 4000-grain paper run of
-~500 frames: ~3 MB (~100 000 cluster rows, pictures ~0.7 MB). With every cluster column a record
-would be ~2x larger.
+four picture frames 0.17 MB), 0.15 MB for a smoke run, 1.7-1.8 MB for a 4000-grain paper run of
+~480 frames (~96 000 cluster rows ~1 MB, the four picture frames 0.7 MB): the cluster columns
+held to float32 precision are stored as float32 (:mod:`tiltpile.record`). With every cluster
+column a record would be ~2x larger. What a record keeps and drops: docs/run-file.md.
 
 A record is up to date when it was written by this format version, table code and
 ``WRITER`` choice, from the same run file (same name, size and ``attrs_sha256``; for files
