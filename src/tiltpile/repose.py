@@ -155,9 +155,9 @@ def rebuild_system(run: Run, frame: int = -1) -> tuple[cfgmod.Config, System]:
     frame's stored contacts with impulse = force * dt (the impulses of the frame's last step up
     to rounding; every contact carrying a force is stored), and its reference positions are unset
     so the first ``advance`` step rebuilds the candidate list and carries those impulses over
-    (``detect.carry_impulses``). Scalars: ``step`` the frame's global step, ``sweeps`` and
-    ``capped_steps`` 0, and the iteration-cap counters of the run's health record
-    (``steps_at_tol``, ``cap_hits``; 0 in a file without one).
+    (``detect.carry_impulses``). Its ``protocol.RunState``: phase "repose", ``step`` the frame's
+    global step, ``sweeps`` and ``capped_steps`` 0, and the iteration-cap counters of the run's
+    health record (``steps_at_tol``, ``cap_hits``; 0 in a file without one).
     """
     if not -run.n_frames <= frame < run.n_frames:
         raise IndexError(f"frame {frame} out of range: the run has {run.n_frames} frames")
@@ -183,11 +183,11 @@ def rebuild_system(run: Run, frame: int = -1) -> tuple[cfgmod.Config, System]:
                  rot=np.asarray(run.rotation(k), dtype=np.float64), vel=vel,
                  ref=np.full((n, 2), np.inf), ci=ci[order], cj=cj[order], key=key[order], c=c,
                  status=status[order].astype(np.int8))
-    h = run.health
-    state["scalars"] = dict(phase="repose", step=int(run.step[k]), sweeps=0, capped_steps=0,
-                            tol_steps=int(h.get("steps_at_tol", 0)),
-                            tol_cap_hits=int(h.get("cap_hits", 0)))
     sysm.restore(state)
+    h = run.health
+    sysm.scalars = protocol.RunState(phase="repose", step=int(run.step[k]),
+                                     tol_steps=int(h.get("steps_at_tol", 0)),
+                                     tol_cap_hits=int(h.get("cap_hits", 0)))
     return cfg, sysm
 
 
@@ -244,7 +244,7 @@ def repose(run_file, *, ke_slide: float = KE_SLIDE, ke_stop: float = KE_STOP,
     run_theta = np.round(run_theta, 10)  # as the continuation's angles (``angle``)
     start = float(run_theta[-1])
     solver = cfg.solver
-    sc = sysm.scalars
+    st = sysm.scalars
 
     thetas, kes, dirs, sweeps = [], [], [], []
     worst = dict(overlap=0.0, gain=-math.inf)
@@ -260,7 +260,7 @@ def repose(run_file, *, ke_slide: float = KE_SLIDE, ke_stop: float = KE_STOP,
         sysm.params["max_iter"] = solver.max_iter_slide if sliding else solver.max_iter
         rec = protocol._advance(sysm, every, theta0, direction * rate)
         net += direction * every
-        sc["step"] += every
+        st.step += every
         protocol._check_health(sysm, rec, cfg.health, n_mobile, "tilt", theta0, direction * rate)
         protocol._check_sane(sysm, cfg.scene.box_length)
         worst["overlap"] = max(worst["overlap"], float(rec.overlap.max()))
@@ -315,8 +315,8 @@ def repose(run_file, *, ke_slide: float = KE_SLIDE, ke_stop: float = KE_STOP,
                   start_deg=start,
                   slide_deg=slide, reverse_deg=reverse, stop_deg=stop, surface_deg=surface,
                   forward_steps=int(forward_steps), reverse_steps=int(reverse_steps),
-                  steps=int(forward_steps + reverse_steps), sweeps=int(sc["sweeps"]),
-                  capped_steps=int(sc["capped_steps"]), max_overlap=worst["overlap"],
+                  steps=int(forward_steps + reverse_steps), sweeps=int(st.sweeps),
+                  capped_steps=int(st.capped_steps), max_overlap=worst["overlap"],
                   max_energy_gain=worst["gain"] if thetas else math.nan,
                   seconds=time.perf_counter() - t0, params=params,
                   theta_deg=np.array(thetas, dtype=float), ke=np.array(kes, dtype=float),

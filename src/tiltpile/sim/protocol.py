@@ -16,8 +16,10 @@
 Events: ``Deposited`` (summary), ``Prepared`` (the pretilt legs of the history, once they are
 done; only with ``protocol.pretilt_deg``), ``Frame`` (arrays of one frame), ``Checkpoint`` (a full
 state, every ``checkpoint_every`` frames and every ``DEPOSITION_CHUNK * 10`` deposition steps),
-``Progress`` (for progress bars) and ``Ended`` (why and where the run stopped, and its cost). Resuming from a checkpoint's state gives the same events after
-it, bit for bit, as the uninterrupted run: every chunk boundary is a fixed multiple of steps.
+``Progress`` (for progress bars) and ``Ended`` (why and where the run stopped, and its cost).
+A checkpoint holds the ``System``'s arrays and the ``RunState`` (the phase, step counts and
+running totals). Resuming from it gives the same events after it, bit for bit, as the
+uninterrupted run: every chunk boundary is a fixed multiple of steps.
 
 Health (``config.HealthConfig``). Every chunk of steps is checked against the stop limits, and
 ``SimulationError`` names the limit, the measured value, the step and what to change:
@@ -27,7 +29,7 @@ Health (``config.HealthConfig``). Every chunk of steps is checked against the st
   ``energy_stop`` per mobile grain (``StepRecord.energy_gain``);
 * iteration cap: more than ``cap_hit_stop_fraction`` of the steps at ``solver.tol`` so far hit
   ``solver.max_iter``, judged once ``CAP_HIT_MIN_STEPS`` such steps have been made (the counters
-  live in the checkpointed scalars, so a resumed run judges the same totals).
+  live in the checkpointed ``RunState``, so a resumed run judges the same totals).
 
 Frames carry the per-step flags of their window (``max_overlap``, ``energy_gain``, ``cap_hits``,
 ``missed``); the warn limits are applied to them by ``runner.simulate``. Deposition has no energy
@@ -40,7 +42,8 @@ solve left (default preset: up to 1.3e-6 m g d per grain, against <= 1.1e-7 in e
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields
 from typing import Iterator
 
 import numpy as np
@@ -110,7 +113,7 @@ class Ended:
 
 @dataclass
 class Checkpoint:
-    state: dict            # System.state(): arrays and scalars
+    state: dict            # System.state(): arrays, and scalars (a RunState as a dict)
 
 
 @dataclass
@@ -119,6 +122,78 @@ class Progress:
     step: int
     theta_deg: float
     mean_iterations: float
+
+
+@dataclass
+class RunState(Mapping):
+    """Where a run stands and what it has counted: with the ``System``'s arrays, all that a
+    checkpoint holds, so that a resumed run goes on bit for bit.
+
+    ``System.scalars`` holds it during a run (``make_system``, ``run``). It reads as a mapping
+    (read-only): ``dict(state)`` is the ``scalars`` of ``System.state()``, stored as JSON in the
+    ``.ckpt`` file, and ``RunState.of`` reads such a mapping back (absent keys take the defaults
+    below, unknown keys are ignored). The mapping holds the fields in the order declared here,
+    each only once the run has reached the part that sets it: the preparation fields (``leg`` to
+    ``deposition_height``) once deposition has ended, ``tol_steps`` and ``tol_cap_hits`` once a
+    chunk at ``solver.tol`` has been judged, ``pretilt_chunks`` once it is not 0.
+    """
+
+    phase: str = "deposit"       # "deposit", "pretilt", "settle", "tilt", "done"; "repose" (repose.py)
+    step: int = 0                # time steps made, every phase counted
+    rest_count: int = 0          # consecutive steps at rest (``_count_rest``)
+    tilt_step: int = 0           # steps of the tilt ramp made
+    frame: int = 0               # the index of the next frame
+    deposition_steps: int = 0    # deposition steps made
+    rebuilds: int = 0            # rebuilds of the candidate contact list
+    end_above: int = 0           # consecutive frames above ``protocol.end_ke``
+    end_reason: str = "theta_max"  # why the run ends: "theta_max" or "slide" (``Ended``)
+    sliding: bool = False        # the last frame was above ``solver.slide_cap_ke``
+    sweeps: int = 0              # NLGS sweeps of every step so far
+    capped_steps: int = 0        # steps that stopped at the iteration cap
+    deposition_max_overlap: float = 0.0  # largest overlap of any deposition step [d]
+    deposition_missed: int = 0   # deposition steps where a grain outran the alert distance
+    # preparation (``protocol.pretilt_deg``): set when deposition ends
+    leg: int = 0                 # the current pretilt leg
+    leg_step: int = 0            # tilt steps of the current leg made
+    leg_start: float = 0.0       # the angle the current leg starts from [deg]
+    hold_steps: int = 0          # steps held at the current leg's angle
+    preparation: list = field(default_factory=list)  # the finished legs (``Prepared.legs``)
+    deposition_height: float = 0.0  # highest grain top at the end of deposition [d]
+    # the iteration-cap counters of the health check (steps at solver.tol)
+    tol_steps: int = 0
+    tol_cap_hits: int = 0
+    pretilt_chunks: int = 0      # chunks of the preparation that did not end a leg
+
+    @classmethod
+    def of(cls, scalars: Mapping) -> RunState:
+        """The run state of a checkpoint's ``scalars`` (or a copy of a RunState)."""
+        return cls(**{k: v for k, v in dict(scalars).items() if k in _RUN_STATE_FIELDS})
+
+    def _stored(self, name: str) -> bool:
+        """Whether the mapping holds the field ``name`` (class docstring)."""
+        if name in _PREPARATION_FIELDS:
+            return self.phase != "deposit"
+        if name in ("tol_steps", "tol_cap_hits"):
+            return self.tol_steps != 0
+        if name == "pretilt_chunks":
+            return self.pretilt_chunks != 0
+        return True
+
+    def __getitem__(self, key: str):
+        if key in _RUN_STATE_FIELDS and self._stored(key):
+            return getattr(self, key)
+        raise KeyError(key)
+
+    def __iter__(self):
+        return (name for name in _RUN_STATE_FIELDS if self._stored(name))
+
+    def __len__(self) -> int:
+        return sum(1 for _ in self)
+
+
+_RUN_STATE_FIELDS = tuple(f.name for f in fields(RunState))
+_PREPARATION_FIELDS = ("leg", "leg_step", "leg_start", "hold_steps", "preparation",
+                       "deposition_height")
 
 
 def tilt_steps_total(protocol) -> int:
@@ -140,28 +215,27 @@ def make_system(config, seed: int) -> System:
                   box_length=s.box_length, dt=v.dt, alert=v.alert, mu=s.mu, mu_wall=s.mu_wall,
                   tol=v.tol, max_iter=v.max_iter, mode=SWEEPS[v.sweep], relax=v.relax,
                   slop=v.overlap_slop, prune=v.prune)
-    sysm.scalars.update(phase="deposit", step=0, rest_count=0, tilt_step=0, frame=0,
-                        deposition_steps=0, rebuilds=0, end_above=0, end_reason="theta_max")
+    sysm.scalars = RunState()
     return sysm
 
 
 def _check_sane(sysm: System, box_length: float) -> None:
     pos = sysm.pos
     if not np.all(np.isfinite(pos)) or not np.all(np.isfinite(sysm.vel)):
-        raise SimulationError(f"non-finite positions or velocities at step {sysm.scalars['step']}")
+        raise SimulationError(f"non-finite positions or velocities at step {sysm.scalars.step}")
     out = (pos[:, 0] < -OUT_OF_BOX) | (pos[:, 0] > box_length + OUT_OF_BOX) | (pos[:, 1] < -OUT_OF_BOX)
     if out.any():
-        raise SimulationError(f"{int(out.sum())} grains left the box at step {sysm.scalars['step']} "
+        raise SimulationError(f"{int(out.sum())} grains left the box at step {sysm.scalars.step} "
                               "(time step too large or solver not converged)")
 
 
 def _frame(sysm: System, protocol, dt: float, rec) -> Frame:
     """The current state as a frame; ``rec`` is the StepRecord of the steps since the last one."""
-    sc = sysm.scalars
+    st = sysm.scalars
     pair, force, status = sysm.contacts()
     its = rec.iterations
-    return Frame(index=sc["frame"], step=sc["step"], time=sc["step"] * dt,
-                 theta_deg=sc["tilt_step"] * protocol.tilt_per_step_deg,
+    return Frame(index=st.frame, step=st.step, time=st.step * dt,
+                 theta_deg=st.tilt_step * protocol.tilt_per_step_deg,
                  position=sysm.pos.copy(), rotation=sysm.rot.copy(), velocity=sysm.velocity.copy(),
                  omega=sysm.omega.copy(), iterations=int(its[-1]), residual=float(rec.residual[-1]),
                  pair=pair, force=force, status=status, ke=float(_ke(sysm)),
@@ -178,13 +252,13 @@ def _check_health(sysm: System, rec, health, n_mobile: int, phase: str, theta0_d
                   dtheta_deg: float = 0.0) -> None:
     """Raise SimulationError past a stop limit of ``health`` (module docstring).
 
-    Call after ``scalars["step"]`` has been advanced past the chunk ``rec``; ``phase`` is
+    Call after ``RunState.step`` has been advanced past the chunk ``rec``; ``phase`` is
     "deposit", "settle" or "tilt" (energy is judged in the tilt only, cap hits outside
     deposition).
     """
-    sc = sysm.scalars
+    st = sysm.scalars
     k = rec.overlap.size
-    first = sc["step"] - k  # global step before the chunk
+    first = st.step - k  # global step before the chunk
 
     def where(i: int) -> str:
         return (f"at step {first + i + 1} ({phase} phase, theta = "
@@ -208,13 +282,13 @@ def _check_health(sysm: System, rec, health, n_mobile: int, phase: str, theta0_d
             "created energy: the solver is not converged (tighten solver.tol, raise "
             "solver.max_iter) or overlaps are being pushed out (reduce solver.dt).")
     caps = int((rec.iterations >= sysm.params["max_iter"]).sum())
-    sc["tol_steps"] = sc.get("tol_steps", 0) + k
-    sc["tol_cap_hits"] = sc.get("tol_cap_hits", 0) + caps
-    frac = sc["tol_cap_hits"] / sc["tol_steps"]
-    if sc["tol_steps"] >= CAP_HIT_MIN_STEPS and frac > health.cap_hit_stop_fraction:
+    st.tol_steps += k
+    st.tol_cap_hits += caps
+    frac = st.tol_cap_hits / st.tol_steps
+    if st.tol_steps >= CAP_HIT_MIN_STEPS and frac > health.cap_hit_stop_fraction:
         raise SimulationError(
-            f"health.cap_hit_stop_fraction exceeded: {sc['tol_cap_hits']} of the {sc['tol_steps']} "
-            f"steps at solver.tol up to step {sc['step']} ({phase} phase, theta = "
+            f"health.cap_hit_stop_fraction exceeded: {st.tol_cap_hits} of the {st.tol_steps} "
+            f"steps at solver.tol up to step {st.step} ({phase} phase, theta = "
             f"{theta0_deg + k * dtheta_deg:.3f} deg) hit solver.max_iter = "
             f"{sysm.params['max_iter']} ({frac:.1%}, limit {health.cap_hit_stop_fraction:.1%}): the "
             "NLGS never converges, the grains behave as soft springs. Raise solver.max_iter (or "
@@ -226,110 +300,106 @@ def run(config, seed: int, state: dict | None = None) -> Iterator[Deposited | Pr
     sysm = make_system(config, seed)
     if state is not None:
         sysm.restore(state)
-    sc = sysm.scalars
-    sc.setdefault("end_above", 0)  # checkpoints written before the end-of-run rule
-    sc.setdefault("end_reason", "theta_max")
-    sc.setdefault("sliding", False)  # ... and before the slide cap
+    st = sysm.scalars = RunState.of(sysm.scalars)
     proto, dt, health = config.protocol, config.solver.dt, config.health
     n_mobile = int((~sysm.fixed).sum())
     last_caps = None
 
     sysm.params["tol"] = config.solver.deposition_tol
-    while sc["phase"] == "deposit":
-        if sc["deposition_steps"] >= proto.max_deposition_steps:
+    while st.phase == "deposit":
+        if st.deposition_steps >= proto.max_deposition_steps:
             caps = "" if last_caps is None else (
                 f"; {last_caps:.0%} of the last {DEPOSITION_CHUNK} steps hit solver.max_iter = "
                 f"{config.solver.max_iter} (if many, raise it or loosen solver.deposition_tol)")
             raise SimulationError(
-                f"deposition not at rest after {sc['deposition_steps']} steps (limit "
+                f"deposition not at rest after {st.deposition_steps} steps (limit "
                 f"protocol.max_deposition_steps = {proto.max_deposition_steps}, checked every "
                 f"{DEPOSITION_CHUNK} steps) "
                 f"(kinetic energy per grain {_ke(sysm) / n_mobile:.3g} > rest_ke {proto.rest_ke:g}"
                 f"{caps}); raise protocol.max_deposition_steps or rest_ke")
         rec = _advance(sysm, DEPOSITION_CHUNK, 0.0, 0.0)
-        sc["step"] += DEPOSITION_CHUNK
-        sc["deposition_steps"] += DEPOSITION_CHUNK
-        sc["rebuilds"] += rec.rebuilds
+        st.step += DEPOSITION_CHUNK
+        st.deposition_steps += DEPOSITION_CHUNK
+        st.rebuilds += rec.rebuilds
         last_caps = float((rec.iterations >= config.solver.max_iter).mean())
-        sc["deposition_max_overlap"] = max(sc.get("deposition_max_overlap", 0.0),
-                                           float(rec.overlap.max()))
-        sc["deposition_missed"] = sc.get("deposition_missed", 0) + int(rec.missed.sum())
+        st.deposition_max_overlap = max(st.deposition_max_overlap, float(rec.overlap.max()))
+        st.deposition_missed += int(rec.missed.sum())
         _check_health(sysm, rec, health, n_mobile, "deposit")
         _check_sane(sysm, config.scene.box_length)
-        _count_rest(sc, rec, n_mobile, proto.rest_ke)
-        yield Progress("deposit", sc["step"], 0.0, float(rec.iterations.mean()))
-        if sc["rest_count"] >= proto.rest_steps:
-            sc["phase"] = "pretilt" if proto.pretilt_deg else "settle"
-            sc.update(leg=0, leg_step=0, leg_start=0.0, hold_steps=0, rest_count=0, preparation=[])
+        _count_rest(st, rec, n_mobile, proto.rest_ke)
+        yield Progress("deposit", st.step, 0.0, float(rec.iterations.mean()))
+        if st.rest_count >= proto.rest_steps:
+            st.phase = "pretilt" if proto.pretilt_deg else "settle"
+            st.leg, st.leg_step, st.leg_start, st.hold_steps, st.rest_count = 0, 0, 0.0, 0, 0
+            st.preparation = []
             top = float(np.max(sysm.pos[:, 1] + sysm.radius))
-            sc["deposition_height"] = top
-            yield Deposited(sc["deposition_steps"], sc["step"] * dt, _ke(sysm) / n_mobile, top,
-                            sc["deposition_max_overlap"], sc["deposition_missed"])
-        elif (sc["deposition_steps"] // DEPOSITION_CHUNK) % 10 == 0:
+            st.deposition_height = top
+            yield Deposited(st.deposition_steps, st.step * dt, _ke(sysm) / n_mobile, top,
+                            st.deposition_max_overlap, st.deposition_missed)
+        elif (st.deposition_steps // DEPOSITION_CHUNK) % 10 == 0:
             yield Checkpoint(sysm.state())
 
     sysm.params["tol"] = config.solver.tol
-    while sc["phase"] == "pretilt":
+    while st.phase == "pretilt":
         yield from _pretilt_chunk(sysm, config, n_mobile)
 
-    if sc["phase"] == "settle":
+    if st.phase == "settle":
         # frame 0: the deposited (or prepared) pile brought to the tilt tolerance, rest_steps steps
         # at theta = 0
         rec = _advance(sysm, proto.rest_steps, 0.0, 0.0)
-        sc["step"] += proto.rest_steps
+        st.step += proto.rest_steps
         _check_health(sysm, rec, health, n_mobile, "settle")
         _check_sane(sysm, config.scene.box_length)
-        sc["phase"] = "tilt"
+        st.phase = "tilt"
         yield _frame(sysm, proto, dt, rec)
-        sc["frame"] = 1
+        st.frame = 1
         yield Checkpoint(sysm.state())
 
     total = tilt_steps_total(proto)
     span_frames = math.ceil(proto.end_span_deg / (proto.frame_every * proto.tilt_per_step_deg) - 1e-9)
-    while sc["phase"] == "tilt" and sc["tilt_step"] < total:
-        k = min(proto.frame_every, total - sc["tilt_step"])
-        theta0 = sc["tilt_step"] * proto.tilt_per_step_deg
-        slide_cap = config.solver.max_iter_slide > 0 and sc["sliding"]
+    while st.phase == "tilt" and st.tilt_step < total:
+        k = min(proto.frame_every, total - st.tilt_step)
+        theta0 = st.tilt_step * proto.tilt_per_step_deg
+        slide_cap = config.solver.max_iter_slide > 0 and st.sliding
         sysm.params["max_iter"] = config.solver.max_iter_slide if slide_cap else config.solver.max_iter
         rec = _advance(sysm, k, theta0, proto.tilt_per_step_deg)
-        sc["step"] += k
-        sc["tilt_step"] += k
-        sc["rebuilds"] += rec.rebuilds
+        st.step += k
+        st.tilt_step += k
+        st.rebuilds += rec.rebuilds
         _check_health(sysm, rec, health, n_mobile, "tilt", theta0, proto.tilt_per_step_deg)
         _check_sane(sysm, config.scene.box_length)
         if k == proto.frame_every:
             frame = _frame(sysm, proto, dt, rec)
             yield frame
-            sc["frame"] += 1
-            sc["sliding"] = bool(frame.ke / n_mobile > config.solver.slide_cap_ke)
+            st.frame += 1
+            st.sliding = bool(frame.ke / n_mobile > config.solver.slide_cap_ke)
             if proto.end_ke > 0:
-                sc["end_above"] = sc["end_above"] + 1 if frame.ke / n_mobile > proto.end_ke else 0
-                if sc["end_above"] >= span_frames:
-                    sc["phase"], sc["end_reason"] = "done", "slide"
-        yield Progress("tilt", sc["step"], sc["tilt_step"] * proto.tilt_per_step_deg,
+                st.end_above = st.end_above + 1 if frame.ke / n_mobile > proto.end_ke else 0
+                if st.end_above >= span_frames:
+                    st.phase, st.end_reason = "done", "slide"
+        yield Progress("tilt", st.step, st.tilt_step * proto.tilt_per_step_deg,
                        float(rec.iterations.mean()))
-        if sc["tilt_step"] >= total:
-            sc["phase"] = "done"
-        if sc["phase"] == "done" or (sc["frame"] - 1) % proto.checkpoint_every == 0:
+        if st.tilt_step >= total:
+            st.phase = "done"
+        if st.phase == "done" or (st.frame - 1) % proto.checkpoint_every == 0:
             yield Checkpoint(sysm.state())
-    yield Ended(sc["end_reason"], sc["tilt_step"] // proto.frame_every * proto.frame_every
-                * proto.tilt_per_step_deg, sc["frame"], sc["step"], sc.get("sweeps", 0),
-                sc.get("capped_steps", 0))
+    yield Ended(st.end_reason, st.tilt_step // proto.frame_every * proto.frame_every
+                * proto.tilt_per_step_deg, st.frame, st.step, st.sweeps, st.capped_steps)
 
 
-def _count_rest(sc: dict, rec, n_mobile: int, rest_ke: float) -> None:
-    """``sc["rest_count"]``: consecutive steps, up to the last of ``rec``, with kinetic energy
+def _count_rest(st: RunState, rec, n_mobile: int, rest_ke: float) -> None:
+    """``st.rest_count``: consecutive steps, up to the last of ``rec``, with kinetic energy
     per mobile grain below ``rest_ke`` (how deposition and every pretilt leg end)."""
     for quiet in rec.ke / n_mobile < rest_ke:
-        sc["rest_count"] = sc["rest_count"] + 1 if quiet else 0
+        st.rest_count = st.rest_count + 1 if quiet else 0
 
 
 def _advance(sysm: System, k: int, theta0_deg: float, dtheta_deg: float):
-    """``sysm.advance``, counting the sweeps and capped steps of the run in its scalars."""
+    """``sysm.advance``, counting the sweeps and capped steps of the run in its ``RunState``."""
     rec = sysm.advance(k, theta0_deg, dtheta_deg)
-    sc = sysm.scalars
-    sc["sweeps"] = sc.get("sweeps", 0) + int(rec.iterations.sum())
-    sc["capped_steps"] = sc.get("capped_steps", 0) + int((rec.iterations >= sysm.params["max_iter"]).sum())
+    st = sysm.scalars
+    st.sweeps += int(rec.iterations.sum())
+    st.capped_steps += int((rec.iterations >= sysm.params["max_iter"]).sum())
     return rec
 
 
@@ -337,46 +407,47 @@ def _pretilt_chunk(sysm: System, config, n_mobile: int):
     """One chunk of the preparation history (``protocol.pretilt_deg``): tilt towards the current
     leg's angle at ``pretilt_per_step_deg`` per step (the ramp's rate if 0), then hold there
     until at rest; events as ``run``'s."""
-    sc, proto = sysm.scalars, config.protocol
+    st, proto = sysm.scalars, config.protocol
     legs = proto.pretilt_deg
-    target, start = legs[sc["leg"]], sc["leg_start"]
+    target, start = legs[st.leg], st.leg_start
     n_leg = int(round(abs(target - start) / (proto.pretilt_per_step_deg or proto.tilt_per_step_deg)))
-    if sc["leg_step"] < n_leg:
+    if st.leg_step < n_leg:
         d = (target - start) / n_leg  # the last step lands on the target
-        k = min(DEPOSITION_CHUNK, n_leg - sc["leg_step"])
-        theta0 = start + sc["leg_step"] * d
+        k = min(DEPOSITION_CHUNK, n_leg - st.leg_step)
+        theta0 = start + st.leg_step * d
         rec = _advance(sysm, k, theta0, d)
-        sc["leg_step"] += k
+        st.leg_step += k
         where = (theta0, d)
     else:
         k = DEPOSITION_CHUNK
-        if sc["hold_steps"] >= proto.max_deposition_steps:
+        if st.hold_steps >= proto.max_deposition_steps:
             raise SimulationError(
-                f"pretilt leg {sc['leg']} (to {target:g} deg) not at rest after holding "
-                f"{sc['hold_steps']} steps (kinetic energy per grain {_ke(sysm) / n_mobile:.3g} > "
+                f"pretilt leg {st.leg} (to {target:g} deg) not at rest after holding "
+                f"{st.hold_steps} steps (kinetic energy per grain {_ke(sysm) / n_mobile:.3g} > "
                 f"rest_ke {proto.rest_ke:g}); raise protocol.max_deposition_steps or rest_ke")
         rec = _advance(sysm, k, target, 0.0)
-        sc["hold_steps"] += k
-        _count_rest(sc, rec, n_mobile, proto.rest_ke)
+        st.hold_steps += k
+        _count_rest(st, rec, n_mobile, proto.rest_ke)
         where = (target, 0.0)
-    sc["step"] += k
-    sc["rebuilds"] += rec.rebuilds
+    st.step += k
+    st.rebuilds += rec.rebuilds
     _check_health(sysm, rec, config.health, n_mobile, "pretilt", *where)
     _check_sane(sysm, config.scene.box_length)
-    yield Progress("pretilt", sc["step"], where[0] + k * where[1], float(rec.iterations.mean()))
-    if sc["leg_step"] >= n_leg and sc["rest_count"] >= proto.rest_steps:
-        sc["preparation"] = sc["preparation"] + [dict(
-            target_deg=float(target), tilt_steps=n_leg, hold_steps=int(sc["hold_steps"]),
+    yield Progress("pretilt", st.step, where[0] + k * where[1], float(rec.iterations.mean()))
+    if st.leg_step >= n_leg and st.rest_count >= proto.rest_steps:
+        st.preparation = st.preparation + [dict(
+            target_deg=float(target), tilt_steps=n_leg, hold_steps=int(st.hold_steps),
             ke_per_grain=_ke(sysm) / n_mobile)]
-        sc.update(leg=sc["leg"] + 1, leg_start=float(target), leg_step=0, hold_steps=0, rest_count=0)
-        if sc["leg"] == len(legs):
-            sc["phase"] = "settle"
-            yield Prepared(list(sc["preparation"]))
+        st.leg, st.leg_start = st.leg + 1, float(target)
+        st.leg_step, st.hold_steps, st.rest_count = 0, 0, 0
+        if st.leg == len(legs):
+            st.phase = "settle"
+            yield Prepared(list(st.preparation))
             return
         yield Checkpoint(sysm.state())  # at the end of every leg but the last
         return
-    sc["pretilt_chunks"] = sc.get("pretilt_chunks", 0) + 1
-    if sc["pretilt_chunks"] % 10 == 0:
+    st.pretilt_chunks += 1
+    if st.pretilt_chunks % 10 == 0:
         yield Checkpoint(sysm.state())
 
 
@@ -394,6 +465,7 @@ def deposited(config, seed: int, on_progress=None) -> System:
             if isinstance(ev, Checkpoint) and ev.state["scalars"]["phase"] == "tilt":
                 sysm = make_system(config, seed)
                 sysm.restore(ev.state)
+                sysm.scalars = RunState.of(sysm.scalars)
                 return sysm
     finally:
         gen.close()

@@ -43,6 +43,7 @@ term, or an unconverged solver.
 from __future__ import annotations
 
 import math
+from typing import NamedTuple
 
 import numpy as np
 
@@ -90,17 +91,96 @@ def contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall, s
     return overlap
 
 
-@njit
-def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state, perm,
-            box_length, dt, alert, mu, mu_wall, tol, max_iter, mode, relax, slop, gravity,
-            prune, theta0, dtheta, n_steps, out_iter, out_res, out_overlap, out_ke, out_work, out_missed,
-            out_updates):
-    """Advance ``n_steps`` steps; gravity angle of step k is theta0 + (k + 1) dtheta [rad],
-    its magnitude ``gravity`` (1 in every run; 0 in some validation tests).
+class Bodies(NamedTuple):
+    """The grains' arrays ``advance`` reads and updates in place (N grains)."""
 
-    Arrays are updated in place where their size allows; the contact arrays are returned since a
-    rebuild replaces them: returns (ci, cj, key, c, status, perm, n_rebuilds).
+    pos: np.ndarray     # (N, 2) centres [d]
+    rot: np.ndarray     # (N,) rotation angles [rad]
+    vel: np.ndarray     # (N + 3, 4) per body vx, vy, s = r omega, 1/m; rows N..N+2 the walls (solver)
+    radius: np.ndarray  # (N,) [d]
+    fixed: np.ndarray   # (N,) bool: grains glued to the floor (the rough bottom)
+    ref: np.ndarray     # (N, 2) positions at the last build of the candidate list
+
+
+class Contacts(NamedTuple):
+    """The candidate contact list (C contacts), in the solver's layout (``solver`` docstring).
+
+    ``advance`` updates these arrays in place, but a rebuild of the list replaces all of them, so
+    it returns the list it ends with.
     """
+
+    ci: np.ndarray      # (C,) int32 grain i
+    cj: np.ndarray      # (C,) int32 body j: a grain, or N + w for wall w (floor, left, right)
+    key: np.ndarray     # (C,) int64 pair key, ci * (N + 3) + cj
+    c: np.ndarray       # (C, N_CONTACT_COLUMNS) per-contact columns C_NX .. C_PT
+    status: np.ndarray  # (C,) int8 open, sticking or sliding
+    perm: np.ndarray    # (C,) int64 scratch for the random and alternating sweep orders
+
+
+class StepParams(NamedTuple):
+    """The integrator's scalar parameters (``System.params``, typed as ``advance`` takes them)."""
+
+    box_length: float   # [d]
+    dt: float           # time step [sqrt(d / g)]
+    alert: float        # alert distance of the candidate list [d]
+    mu: float           # grain-grain friction coefficient
+    mu_wall: float      # grain-wall friction coefficient
+    tol: float          # NLGS tolerance on the relative impulse change
+    max_iter: int       # NLGS sweep cap per step
+    mode: int           # sweep order (``solver.SWEEPS``)
+    relax: float        # over-relaxation factor omega (1: plain NLGS)
+    slop: float         # overlap slop [d] (module docstring)
+    gravity: float      # gravity magnitude [g]
+    prune: bool         # pruned sweeps (``solver`` docstring)
+
+    @classmethod
+    def of(cls, params: dict) -> StepParams:
+        """The parameters of a ``System.params`` dict, each converted to its field's type (so
+        ``advance`` is compiled for one signature whatever numbers the dict holds)."""
+        p = params
+        return cls(float(p["box_length"]), float(p["dt"]), float(p["alert"]), float(p["mu"]),
+                   float(p["mu_wall"]), float(p["tol"]), int(p["max_iter"]), int(p["mode"]),
+                   float(p["relax"]), float(p["slop"]), float(p["gravity"]), bool(p["prune"]))
+
+
+class StepLog(NamedTuple):
+    """Per-step outputs of ``advance``: arrays of length n_steps, filled in place (``StepRecord``)."""
+
+    iterations: np.ndarray  # int64 NLGS sweeps
+    residual: np.ndarray    # final NLGS residual
+    overlap: np.ndarray     # largest overlap at the start of the step [d]
+    ke: np.ndarray          # kinetic energy of the mobile grains after the step [m g d]
+    work: np.ndarray        # work of gravity over the step [m g d]
+    missed: np.ndarray      # bool: a grain moved farther than alert / 2 since the last build
+    updates: np.ndarray     # int64 local solves (contact updates)
+
+
+@njit
+def advance(bodies, contacts, rng_state, params, theta0, dtheta, n_steps, log):
+    """Advance ``n_steps`` steps; gravity angle of step k is theta0 + (k + 1) dtheta [rad],
+    its magnitude ``params.gravity`` (1 in every run; 0 in some validation tests).
+
+    ``bodies`` (``Bodies``) and ``rng_state`` (the sweep-order generator, ``rng``) are updated in
+    place, ``params`` is a ``StepParams``, ``log`` a ``StepLog`` of n_steps rows filled in place.
+    Returns (contacts, n_rebuilds): the ``Contacts`` the steps end with (a rebuild replaces the
+    arrays) and how many times the candidate list was rebuilt.
+    """
+    pos, rot, vel, radius = bodies.pos, bodies.rot, bodies.vel, bodies.radius
+    fixed, ref = bodies.fixed, bodies.ref
+    ci, cj, key, c = contacts.ci, contacts.cj, contacts.key, contacts.c
+    status, perm = contacts.status, contacts.perm
+    box_length = params.box_length
+    dt = params.dt
+    alert = params.alert
+    mu = params.mu
+    mu_wall = params.mu_wall
+    tol = params.tol
+    max_iter = params.max_iter
+    mode = params.mode
+    relax = params.relax
+    slop = params.slop
+    gravity = params.gravity
+    prune = params.prune
     n = pos.shape[0]
     half = 0.5 * alert
     rebuilds = 0
@@ -130,12 +210,12 @@ def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state
             perm = np.empty(ci.shape[0], np.int64)
             ref[:, :] = pos
             rebuilds += 1
-        out_overlap[k] = contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall, slop)
+        log.overlap[k] = contact_geometry(pos, radius, vel, ci, cj, c, box_length, dt, mu, mu_wall, slop)
         apply_impulses(ci, cj, c, vel)
         it, res, upd = nlgs(ci, cj, c, status, vel, tol, max_iter, mode, rng_state, perm, relax, prune)
-        out_iter[k] = it
-        out_updates[k] = upd
-        out_res[k] = res
+        log.iterations[k] = it
+        log.updates[k] = upd
+        log.residual[k] = res
         ke = 0.0
         work = 0.0
         moved = 0.0
@@ -150,10 +230,10 @@ def advance(pos, rot, vel, radius, fixed, ref, ci, cj, key, c, status, rng_state
                 ddx = pos[i, 0] - ref[i, 0]
                 ddy = pos[i, 1] - ref[i, 1]
                 moved = max(moved, ddx * ddx + ddy * ddy)
-        out_ke[k] = ke
-        out_work[k] = work
-        out_missed[k] = moved > half * half
-    return ci, cj, key, c, status, perm, rebuilds
+        log.ke[k] = ke
+        log.work[k] = work
+        log.missed[k] = moved > half * half
+    return Contacts(ci, cj, key, c, status, perm), rebuilds
 
 
 class StepRecord:
@@ -179,6 +259,12 @@ class StepRecord:
         self.ke0 = 0.0
 
     @property
+    def log(self) -> StepLog:
+        """The per-step arrays as the ``StepLog`` that ``advance`` fills (the same arrays)."""
+        return StepLog(self.iterations, self.residual, self.overlap, self.ke, self.work, self.missed,
+                       self.updates)
+
+    @property
     def energy_gain(self) -> np.ndarray:
         """Kinetic energy gained in each step beyond the work of gravity [m g d]."""
         before = np.concatenate([[self.ke0], self.ke[:-1]])
@@ -189,10 +275,13 @@ class System:
     """The state of a pile and the parameters of its integrator; the thin layer over the kernels.
 
     State arrays (``ARRAYS``) are everything a bit-identical restart needs; ``scalars`` holds the
-    counters the protocol keeps. Parameters: box_length, dt, alert, mu, mu_wall, tol, max_iter,
-    sweep mode (``solver.SWEEPS``), over-relaxation factor ``relax`` (default 1 = plain NLGS, as
-    ``solver.relax`` in the config), gravity magnitude (1), ``prune`` (pruned sweeps in long
-    steps, ``solver.prune``; off unless given).
+    run state the protocol keeps (a mapping of JSON values: ``protocol.RunState`` in a run).
+    ``params`` (a dict, free to change between calls) holds the integrator's parameters:
+    box_length, dt, alert, mu, mu_wall, tol, max_iter, sweep mode (``solver.SWEEPS``),
+    over-relaxation factor ``relax`` (default 1 = plain NLGS, as ``solver.relax`` in the config),
+    overlap ``slop``, gravity magnitude (1), ``prune`` (pruned sweeps in long steps,
+    ``solver.prune``; off unless given). ``advance`` hands them to the kernel as a ``StepParams``,
+    the arrays as ``Bodies`` and ``Contacts``.
     """
 
     ARRAYS = ("radius", "fixed", "pos", "rot", "vel", "ref", "ci", "cj", "key", "c", "status", "rng")
@@ -227,14 +316,12 @@ class System:
         self._order_contacts()
         rec = StepRecord(n_steps)
         rec.ke0 = self.kinetic_energy()
-        p = self.params
-        (self.ci, self.cj, self.key, self.c, self.status, self.perm, rec.rebuilds) = advance(
-            self.pos, self.rot, self.vel, self.radius, self.fixed, self.ref, self.ci, self.cj, self.key,
-            self.c, self.status, self.rng, self.perm, p["box_length"], p["dt"], p["alert"], p["mu"],
-            p["mu_wall"], p["tol"], p["max_iter"], p["mode"], p["relax"], p["slop"], p["gravity"],
-            p["prune"], math.radians(theta0_deg),
-            math.radians(dtheta_deg), n_steps, rec.iterations, rec.residual, rec.overlap, rec.ke,
-            rec.work, rec.missed, rec.updates)
+        bodies = Bodies(self.pos, self.rot, self.vel, self.radius, self.fixed, self.ref)
+        contacts = Contacts(self.ci, self.cj, self.key, self.c, self.status, self.perm)
+        contacts, rec.rebuilds = advance(bodies, contacts, self.rng, StepParams.of(self.params),
+                                         math.radians(theta0_deg), math.radians(dtheta_deg), n_steps,
+                                         rec.log)
+        self.ci, self.cj, self.key, self.c, self.status, self.perm = contacts
         return rec
 
     def _order_contacts(self) -> None:
@@ -288,7 +375,8 @@ class System:
         return pair, force, self.status[keep].copy()
 
     def state(self) -> dict:
-        """Copies of every state array plus the scalars: enough for a bit-identical restart."""
+        """Copies of every state array plus the scalars (as a dict): enough for a bit-identical
+        restart."""
         out = {k: getattr(self, k).copy() for k in self.ARRAYS}
         out["scalars"] = dict(self.scalars)
         return out
