@@ -12,6 +12,7 @@ nothing when imported (``python -m tiltpile.bench`` lists them):
 ``solver_variants``    sweeps, cost and true error of NLGS variants while tilting
 ``flow_caps``          the iteration cap in a flowing pile, from a frame of a run
 ``precursor_caps``     the iteration cap between precursor events, from frames of a run
+``settle``             when NLGS velocities settle (LMGC90's norms) against the motion of a long solve
 ``compare_ensembles``  onset, z and n_m of ensembles that differ in one setting
 ``guard``              what a cheaper setting costs against how far it moves the figure numbers
 ``store_filters``      size and time of the run file's checksums and of compression
@@ -21,4 +22,4 @@ Measurement code sits beside the command line: it imports ``config``, ``sim``, `
 """
 
 STUDIES = ("pile", "timing", "chart", "solver_micro", "solver_variants", "flow_caps",
-           "precursor_caps", "compare_ensembles", "guard", "store_filters")
+           "precursor_caps", "settle", "compare_ensembles", "guard", "store_filters")
