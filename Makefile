@@ -58,6 +58,7 @@ SET ?=
 NB ?=
 RUNS_smoke := 4
 RUNS_default := 6
+RUNS_default-fresh := 6
 RUNS_paper := 50
 RUNS_paper-fresh := 50
 RUNS ?= $(RUNS_$(PRESET))
@@ -103,7 +104,7 @@ NOTEBOOKS := $(wildcard notebooks/fig*.ipynb)
 FIG_JSON := $(patsubst notebooks/%.ipynb,$(FIGURES)/%.json,$(NOTEBOOKS))
 # The code a figure's JSON depends on. FIG_COMMON: what every figure notebook imports (data and
 # style, the analysis but for the two studies' own modules, the run-file and record readers, the
-# package's version); FIG_USES_<module>: the other modules of src/tiltpile its figure module
+# configuration (the piles' history in every JSON's header), the package's version); FIG_USES_<module>: the other modules of src/tiltpile its figure module
 # imports, directly or not. A figure module imports no other figure's module (shared helpers
 # live in data.py, style.py, snapshot.py), save the preparation study, which is Fig. 2's
 # computation on several ensembles.
@@ -111,13 +112,12 @@ FIG_JSON := $(patsubst notebooks/%.ipynb,$(FIGURES)/%.json,$(NOTEBOOKS))
 ANALYSIS := $(wildcard src/tiltpile/analysis/*.py src/tiltpile/analysis/*/*.py)
 FIG_COMMON := $(wildcard src/tiltpile/__init__.py src/tiltpile/figures/__init__.py \
                          src/tiltpile/figures/style.py src/tiltpile/figures/data.py \
-                         src/tiltpile/record.py src/tiltpile/store/*.py) \
+                         src/tiltpile/record.py src/tiltpile/store/*.py src/tiltpile/config.py) \
               $(filter-out %/structure.py %/zcount.py,$(ANALYSIS))
 FIG_USES_fig1 := src/tiltpile/figures/snapshot.py
 FIG_USES_fig3 := src/tiltpile/figures/snapshot.py
 FIG_USES_fig7 := src/tiltpile/figures/snapshot.py
-FIG_USES_preparation := src/tiltpile/figures/fig2.py src/tiltpile/config.py \
-                        src/tiltpile/analysis/structure.py
+FIG_USES_preparation := src/tiltpile/figures/fig2.py src/tiltpile/analysis/structure.py
 fig_module = $(firstword $(subst _, ,$(1)))
 ENSEMBLE_ARGS := $(if $(SCHEDULER),--scheduler $(SCHEDULER)) $(if $(WORKERS),--workers $(WORKERS)) \
                  $(foreach kv,$(SET),--set '$(kv)')
@@ -241,11 +241,12 @@ PREP_ROOT ?= data/preparation
 PREP_RUNS ?= 6
 PREP_WORKERS ?=
 PREP_HISTORIES ?= fresh cyc10 cyc16 cyc18 cyc16r10
-# Deboeuf et al.'s history: 0 -> theta_rev, two full cycles +-theta_rev, back to 0
-PREP_SET_fresh :=
-PREP_SET_cyc10 := protocol.cycles=2 protocol.theta_rev_deg=10.0
-PREP_SET_cyc16 := protocol.cycles=2 protocol.theta_rev_deg=16.0
-PREP_SET_cyc18 := protocol.cycles=2 protocol.theta_rev_deg=18.0
+# Deboeuf et al.'s history: 0 -> theta_rev, two full cycles +-theta_rev, back to 0, at the ramp's
+# rate (the default preset's own history is cyc16r10; fresh is the preset default-fresh)
+PREP_SET_fresh := protocol.cycles=0 protocol.theta_rev_deg=0.0 protocol.pretilt_per_step_deg=0.0
+PREP_SET_cyc10 := protocol.cycles=2 protocol.theta_rev_deg=10.0 protocol.pretilt_per_step_deg=0.0
+PREP_SET_cyc16 := protocol.cycles=2 protocol.theta_rev_deg=16.0 protocol.pretilt_per_step_deg=0.0
+PREP_SET_cyc18 := protocol.cycles=2 protocol.theta_rev_deg=18.0 protocol.pretilt_per_step_deg=0.0
 # the same history at 10x the ramp's rate (0.02 deg per step in its legs): the rate check
 PREP_SET_cyc16r10 := $(PREP_SET_cyc16) protocol.pretilt_per_step_deg=0.02
 PREP_GIVEN := $(PREP_DIRS)

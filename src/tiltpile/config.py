@@ -8,10 +8,10 @@ sections, each a frozen dataclass whose fields carry their type and allowed rang
 ``protocol``  deposition and quasi-static tilt (what is done to the pile),
 ``health``    the limits at which a run is flagged, warned about, or stopped (``HealthConfig``).
 
-Presets ``smoke``, ``default``, ``paper`` and ``paper-fresh`` live in ``tiltpile/presets/*.toml``.
-The fields' defaults are the ``default`` preset's values: a configuration built from nothing is
-that preset (``tests/workflow/test_config.py``), and each preset file gives what it changes,
-its scale always. A preset may be overridden by a TOML file and by ``key=value`` strings with
+Presets ``smoke``, ``default``, ``default-fresh``, ``paper`` and ``paper-fresh`` live in
+``tiltpile/presets/*.toml``. The fields' defaults are the ``default-fresh`` preset's values (the
+default preset without its history): a configuration built from nothing is that preset
+(``tests/workflow/test_config.py``), and each preset file gives what it changes, its scale always. A preset may be overridden by a TOML file and by ``key=value`` strings with
 dotted keys (``solver.dt=0.005``).
 Anything wrong -- an unknown section or key, a wrong type, a value out of range -- raises
 :class:`ConfigError` naming the field and the allowed values, before anything is computed or written.
@@ -35,7 +35,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-PRESETS = ("smoke", "default", "paper", "paper-fresh")
+PRESETS = ("smoke", "default", "default-fresh", "paper", "paper-fresh")
 
 
 class ConfigError(ValueError):
@@ -190,6 +190,46 @@ def deboeuf_history(cycles: int, theta_rev_deg: float) -> tuple:
     if a == 0.0:
         return ()
     return (a,) + (-a, a) * int(cycles) + (0.0,)
+
+
+def history_label(targets) -> str:
+    """A short name for a preparation history (the legs' target angles in deg, in order).
+
+    [] -> "fresh"; [a, -a, 0] -> "±a° once"; [a, -a, a, -a, 0] -> "±a° twice" (k > 2:
+    "k times"); [-a, a, 0] -> "∓a° once"; [a, 0] -> "a° once"; Deboeuf's history
+    [a, -a, a, ..., -a, a, 0] (``protocol.cycles`` = k, ``theta_rev_deg`` = a) -> "±a° k cycles"
+    ("1 cycle"); else "pretilt a/b/.../0°".
+    """
+    t = [float(x) for x in targets]
+    if not t:
+        return "fresh"
+
+    def num(x: float) -> str:
+        return f"{x:g}"
+
+    times = {1: "once", 2: "twice"}
+    body = t[:-1] if t[-1] == 0.0 else None
+    if body:
+        a = body[0]
+        alternating = a != 0.0 and all(x == (a if i % 2 == 0 else -a) for i, x in enumerate(body))
+        sign = "±" if a > 0 else "∓"
+        if len(body) % 2 == 0 and alternating:
+            k = len(body) // 2
+            return f"{sign}{num(abs(a))}° {times.get(k, f'{k} times')}"
+        if len(body) >= 3 and alternating:
+            k = len(body) // 2
+            return f"{sign}{num(abs(a))}° {k} cycle{'s' if k > 1 else ''}"
+        if len(body) == 1:
+            return f"{num(a)}° once"
+    return "pretilt " + "/".join(num(x) for x in t) + "°"
+
+
+def rate_suffix(config: dict) -> str:
+    """" at Nx rate" for a configuration whose history legs tilt at their own rate
+    (``protocol.pretilt_per_step_deg``, N times the ramp's), "" otherwise."""
+    proto = config.get("protocol", {})
+    own = float(proto.get("pretilt_per_step_deg", 0.0) or 0.0)
+    return f" at {own / float(proto['tilt_per_step_deg']):g}x rate" if own > 0 else ""
 
 
 def _expand_history(given: dict) -> dict:

@@ -31,3 +31,17 @@ def test_run_files_record_their_cost_and_the_ensemble_meta_carries_it(tmp_path):
     meta = load_ensemble(tmp_path).meta["cost"]
     assert meta["runs_timed"] == 1 and meta["seconds_per_run"] == pytest.approx(cost["seconds"])
     assert meta["sweeps_per_run"] == cost["sweeps"] and meta["capped_steps_per_run"] == cost["capped_steps"]
+
+
+def test_the_ensemble_meta_names_the_piles_history():
+    """``history`` of an ensemble's meta: the legs, their own rate and the label the preparation
+    study and the report print (fresh piles: [], "fresh")."""
+    from tiltpile.analysis.ensemble_data import _describe
+
+    for preset, legs, rate, label in (
+            ("default-fresh", [], 0.0, "fresh"),
+            ("default", [16.0, -16.0, 16.0, -16.0, 16.0, 0.0], 0.02, "±16° 2 cycles at 10x rate"),
+            ("paper", [16.0, -16.0, 16.0, -16.0, 16.0, 0.0], 0.0, "±16° 2 cycles")):
+        cfg = config.load(preset).to_dict()
+        h = _describe(preset, [0], cfg, "x" * 64, {}, [{}])["history"]
+        assert h == {"pretilt_deg": legs, "pretilt_per_step_deg": rate, "label": label}, preset

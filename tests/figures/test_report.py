@@ -138,7 +138,7 @@ def test_scales_table_says_not_yet_run(tmp_path):
     text = report.write_report(tmp_path, tmp_path / "R.md").read_text()
     assert "## The same numbers at every scale" in text
     row = next(line for line in text.splitlines() if line.startswith("| first 2% onset"))
-    assert row.count("not yet run") == 3 and "9.7 [8.1, 10.9]" in row
+    assert row.count("not yet run") == 4 and "9.7 [8.1, 10.9]" in row   # all but the default
     assert "## How each claim is tested" in text
     assert all(c.key in report.RULES for c in report.CLAIMS)
 
@@ -201,3 +201,21 @@ def test_theta_m_and_z_verdicts_cite_the_studies(tmp_path):
     (tmp_path / "paper").mkdir()
     assert set(report.load_studies(tmp_path / "paper")) == {"preparation", "zcount"}
     assert report.load_studies(tmp_path / "nowhere") == {}
+
+
+def test_the_report_names_the_piles_history(tmp_path):
+    """The source column names the piles' history from the figure's header, and the theta_m note
+    says whether the piles were fresh or cycled (a cycled pile is not called fresh)."""
+    claim = next(c.text for c in report.CLAIMS if c.key == "theta_m")
+    fresh = dict(_fig2(), history={"pretilt_deg": [], "pretilt_per_step_deg": 0.0, "label": "fresh"})
+    _, text = _verdicts(tmp_path, [fresh])
+    assert "smoke, 3 runs of 250 grains, fresh |" in _row(text, claim)
+    assert "Our piles are freshly deposited" in text
+    cyc = dict(_fig2(), history={"pretilt_deg": [16.0, -16.0, 16.0, -16.0, 16.0, 0.0],
+                                 "pretilt_per_step_deg": 0.0, "label": "±16° 2 cycles"})
+    _, text = _verdicts(tmp_path, [cyc])
+    assert "smoke, 3 runs of 250 grains, ±16° 2 cycles |" in _row(text, claim)
+    assert "freshly deposited" not in text and "(±16° 2 cycles), as the paper's" in text
+    # a figure written before the header named the history: neither is claimed
+    _, text = _verdicts(tmp_path, [_fig2()])
+    assert "freshly deposited" not in text and "as the paper's." not in text

@@ -128,10 +128,10 @@ def test_bad_shorthand_or_history_rate_is_refused_in_one_line(tmp_path, capsys, 
 
 def test_later_keys_keep_old_hashes():
     """Configurations that do not use the keys added later hash as before them."""
-    base = config.load("default")
+    base = config.load("default-fresh")
     assert "pretilt_deg" not in base.to_json() and "end_ke" not in base.to_json()
-    assert base.hash().startswith("fa89eabe2003")  # the committed default figures' config hash
-    used = config.load("default", overrides=["protocol.end_ke=1e-3"])
+    assert base.hash().startswith("fa89eabe2003")  # figures/default-fresh's config hash
+    used = config.load("default-fresh", overrides=["protocol.end_ke=1e-3"])
     assert used.hash() != base.hash() and config.from_json(used.to_json()) == used
 
 

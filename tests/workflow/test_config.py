@@ -149,9 +149,25 @@ def test_bench_says_which_preset_it_measures(monkeypatch, capsys):
     assert "(default: paper-fresh)" in helptext
 
 
-def test_the_configuration_defaults_are_the_default_preset():
-    """config.py's dataclass defaults are the default preset's values (a preset file gives only
-    what it changes; every preset gives its scale explicitly), so a configuration built from
-    nothing is the default preset, hash and all."""
-    assert config.from_dict({}) == config.load("default")
-    assert config.from_dict({}).hash() == config.load("default").hash()
+def test_the_configuration_defaults_are_the_fresh_default_preset():
+    """config.py's dataclass defaults are the default-fresh preset's values (a preset file gives
+    only what it changes; every preset gives its scale explicitly), so a configuration built from
+    nothing is that preset, hash and all: a run file's TOML, which leaves out an empty history,
+    reads back as the run it was."""
+    assert config.from_dict({}) == config.load("default-fresh")
+    assert config.from_dict({}).hash() == config.load("default-fresh").hash()
+
+
+def test_the_default_preset_is_default_fresh_with_deboeufs_history():
+    """presets/default.toml cycles its piles as the paper preset does (to 16 deg, two full cycles
+    +-16 deg, back to 0), its history's legs at 10x the ramp's rate (0.02 deg per step);
+    default-fresh drops the history only, and its hash is that of the fresh default runs."""
+    import dataclasses
+    default, fresh = config.load("default"), config.load("default-fresh")
+    assert default.protocol.pretilt_deg == (16.0, -16.0, 16.0, -16.0, 16.0, 0.0)
+    assert default.protocol.pretilt_per_step_deg == 10 * default.protocol.tilt_per_step_deg == 0.02
+    assert fresh.protocol.pretilt_deg == ()
+    assert dataclasses.replace(default, protocol=dataclasses.replace(
+        default.protocol, pretilt_deg=(), pretilt_per_step_deg=0.0)) == fresh
+    assert default.hash().startswith("f822c0f99af7")  # the committed default figures' runs
+    assert fresh.hash().startswith("fa89eabe2003")    # figures/default-fresh's runs

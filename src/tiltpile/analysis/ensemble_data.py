@@ -105,10 +105,20 @@ def load_ensemble(data_dir, preset: str | None = None, **analysis_params) -> Ens
 
 
 def _describe(preset, seeds, cfg, config_hash, analysis_params, costs) -> dict:
-    """An ensemble's ``meta`` (the same from run files and from records)."""
+    """An ensemble's ``meta`` (the same from run files and from records); ``history``: the piles'
+    preparation before the ramp: its legs ``pretilt_deg`` ([] for fresh piles), their own rate
+    (0: the ramp's) and a ``label`` (:func:`tiltpile.config.history_label`, "fresh", "±16° 2
+    cycles at 10x rate", ...)."""
+    from tiltpile.config import history_label, rate_suffix
+
+    proto = cfg.get("protocol", {})
+    legs = [float(a) for a in proto.get("pretilt_deg") or []]
+    history = {"pretilt_deg": legs,
+               "pretilt_per_step_deg": float(proto.get("pretilt_per_step_deg") or 0.0),
+               "label": history_label(legs) + (rate_suffix(cfg) if legs else "")}
     return {"preset": preset, "n_runs": len(seeds), "seeds": seeds, "n_grains": cfg["scene"]["n"],
             "config_hash": config_hash[:12], "tiltpile_version": __version__,
-            "analysis": dict(analysis_params), "cost": ensemble_cost(costs)}
+            "analysis": dict(analysis_params), "history": history, "cost": ensemble_cost(costs)}
 
 
 def _same(a, b) -> bool:

@@ -303,6 +303,9 @@ def plot(data: dict, numbers: dict):
                 fmt="o", ms=2, lw=0.6, color=style.COLORS["quiet"])
     if ok.any():
         ia.set_yscale("log")
+        # a range of about one decade would label the minor ticks too, over one another
+        from matplotlib.ticker import NullFormatter
+        ia.yaxis.set_minor_formatter(NullFormatter())
     ia.set_ylabel(r"$\xi$", labelpad=1)
     ib = ax.inset_axes([0.80, 0.63, 0.19, 0.33])
     okb = np.isfinite(inset["mean_largest"])

@@ -40,6 +40,8 @@ from tiltpile.analysis.avalanche import precursor_count, run_onsets
 from tiltpile.analysis.stats import diff_ci
 from tiltpile.analysis.observables import run_files
 
+from tiltpile.config import history_label, rate_suffix
+
 from . import fig2, style
 from .data import per_run_quiet
 
@@ -84,38 +86,6 @@ CHANGE_CUTOFF = 0.005
 
 # ----------------------------------------------------------------------------------------------
 # preparation history and its label
-
-
-def history_label(targets) -> str:
-    """A short name for a preparation history (the legs' target angles in deg, in order).
-
-    [] -> "fresh"; [a, -a, 0] -> "±a° once"; [a, -a, a, -a, 0] -> "±a° twice" (k > 2:
-    "k times"); [-a, a, 0] -> "∓a° once"; [a, 0] -> "a° once"; Deboeuf's history
-    [a, -a, a, ..., -a, a, 0] (``protocol.cycles`` = k, ``theta_rev_deg`` = a) -> "±a° k cycles"
-    ("1 cycle"); else "pretilt a/b/.../0°".
-    """
-    t = [float(x) for x in targets]
-    if not t:
-        return "fresh"
-
-    def num(x: float) -> str:
-        return f"{x:g}"
-
-    times = {1: "once", 2: "twice"}
-    body = t[:-1] if t[-1] == 0.0 else None
-    if body:
-        a = body[0]
-        alternating = a != 0.0 and all(x == (a if i % 2 == 0 else -a) for i, x in enumerate(body))
-        sign = "±" if a > 0 else "∓"
-        if len(body) % 2 == 0 and alternating:
-            k = len(body) // 2
-            return f"{sign}{num(abs(a))}° {times.get(k, f'{k} times')}"
-        if len(body) >= 3 and alternating:
-            k = len(body) // 2
-            return f"{sign}{num(abs(a))}° {k} cycle{'s' if k > 1 else ''}"
-        if len(body) == 1:
-            return f"{num(a)}° once"
-    return "pretilt " + "/".join(num(x) for x in t) + "°"
 
 
 def preparation_history(data_dir) -> list[float]:
@@ -180,14 +150,6 @@ def load(data_dirs, labels=None, **analysis_params) -> tuple[list, list[str], li
         labels = [f"{x} ({Path(d).name})" if derived.count(x) > 1 else x
                   for x, d in zip(derived, data_dirs)]
     return ens, labels, hist
-
-
-def rate_suffix(config: dict) -> str:
-    """" at Nx rate" for a configuration whose history legs tilt at their own rate
-    (``protocol.pretilt_per_step_deg``, N times the ramp's), "" otherwise."""
-    proto = config.get("protocol", {})
-    own = float(proto.get("pretilt_per_step_deg", 0.0) or 0.0)
-    return f" at {own / float(proto['tilt_per_step_deg']):g}x rate" if own > 0 else ""
 
 
 # ----------------------------------------------------------------------------------------------

@@ -44,10 +44,13 @@ def render(figs: dict[str, dict], claims: list[Claim], scales: list[str] | None 
             src = "n/a"
         else:
             doc = figs[stem]
-            ours, verdict, note = c.judge(doc.get("numbers", {}))
+            # the judges see the piles' history beside the numbers (a note may depend on it)
+            ours, verdict, note = c.judge({**doc.get("numbers", {}), "history": doc.get("history")})
             cite = CITES[c.key](studies) if studies and c.key in CITES else ""
             note = " ".join(x for x in (note, cite) if x)
-            src = f"{doc.get('preset')}, {doc.get('n_runs')} runs of {doc.get('n_grains')} grains"
+            label = (doc.get("history") or {}).get("label")
+            src = (f"{doc.get('preset')}, {doc.get('n_runs')} runs of {doc.get('n_grains')} grains"
+                   + (f", {label}" if label else ""))
         rows.append(f"| {c.text} | {c.paper} | {ours} | {src} | **{verdict}** |")
         if note:
             notes.append(f"- **{c.text}** ({verdict}): {note}")

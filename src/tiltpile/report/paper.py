@@ -17,13 +17,17 @@ def _theta_m(n: dict):
     ours = (f"first onset {_ci(n, 'theta_m', '.1f', 'theta_m_mean')} deg (mean [95% CI], {k} runs; "
             f"range {_f(_num(n.get('theta_m_min')), '.1f')}-{_f(mx, '.1f')})")
     ok = mx >= 14.4
+    legs = ((n.get("history") or {}).get("pretilt_deg"))
+    why = ("Our piles are freshly deposited; the paper's had been tilted back and forth before, "
+           "which suppresses precursors below the earlier angle." if legs == [] else
+           f"Our piles were tilted back and forth before the ramp "
+           f"({(n.get('history') or {}).get('label')}), as the paper's." if legs else "")
     note = "" if ok or not math.isfinite(mx) else (
         "no run stays quiet up to 14.4 deg: the paper's Fig. 5 has quiet frames 14.4 deg before an "
         "onset, so some of its piles had no 2% event before 14.4 deg; ours all have one by "
         f"{_f(mx, '.1f')} deg. These first onsets are precursor rearrangements of the top layers "
-        "(kinetic energy per grain 1e-5 to 5e-4); the large slide comes later (next claim). Our "
-        "piles are freshly deposited; the paper's had been tilted back and forth before, which "
-        "suppresses precursors below the earlier angle.")
+        "(kinetic energy per grain 1e-5 to 5e-4); the large slide comes later (next claim). "
+        + why).strip()
     return ours, _verdict(ok, math.isfinite(mx)), note
 
 

@@ -1,5 +1,5 @@
-"""The same headline numbers of Fig. 2 at every scale that has been run (smoke, default, paper,
-paper-fresh; "not yet run" otherwise), and where each scale's figures live (:func:`scale_dirs`).
+"""The same headline numbers of Fig. 2 at every scale that has been run (smoke, default,
+default-fresh, paper, paper-fresh; "not yet run" otherwise), and where each scale's figures live (:func:`scale_dirs`).
 """
 
 from __future__ import annotations
@@ -11,7 +11,8 @@ from pathlib import Path
 from .judging import _ci, _f, _num
 
 
-SCALES = (("smoke", "smoke"), ("default", ""), ("paper", "paper"), ("paper-fresh", "paper-fresh"))
+SCALES = (("smoke", "smoke"), ("default", ""), ("default-fresh", "default-fresh"), ("paper", "paper"),
+          ("paper-fresh", "paper-fresh"))
 
 
 def scale_dirs(figures_dir) -> dict[str, Path]:
