@@ -71,8 +71,8 @@ import numpy as np
 from tiltpile.bench.flow_caps import rebuilt_state
 from tiltpile.sim import protocol
 from tiltpile.sim.jit import njit
-from tiltpile.sim.solver import (C_B, C_IWN, C_IWT, C_MU, C_NX, C_NY, C_PN, C_PT, IMPULSE, V_IM, V_S,
-                                 V_X, V_Y, nlgs)
+from tiltpile.sim.solver import (C_IWN, C_IWT, C_NX, C_NY, C_PN, C_PT, IMPULSE, V_IM, V_S,
+                                 V_X, V_Y, _local_solution, nlgs)
 
 LMGC_TOL = 1.666e-4   # LMGC90's tolerance in its 2D disk examples
 PAST_CAP = 10         # past the cap, a log point every PAST_CAP x --every sweeps
@@ -92,20 +92,10 @@ def check_pass(ci, cj, c, vel):
     (the last two give ``solver.natural_residual``)."""
     out = np.zeros(8)
     for a in range(ci.shape[0]):
-        i = ci[a]
-        j = cj[a]
-        nx = c[a, C_NX]
-        ny = c[a, C_NY]
         pn = c[a, C_PN]
         pt = c[a, C_PT]
-        dvx = vel[i, V_X] - vel[j, V_X]
-        dvy = vel[i, V_Y] - vel[j, V_Y]
-        un = dvx * nx + dvy * ny
-        ut = -dvx * ny + dvy * nx - (vel[i, V_S] + vel[j, V_S])
         # the plain local solution, as the sweeps and solver.natural_residual compute it
-        pn2 = max(0.0, pn - (un + c[a, C_B]) * c[a, C_IWN])
-        lim = c[a, C_MU] * pn2
-        pt2 = min(lim, max(-lim, pt - ut * c[a, C_IWT]))
+        pn2, pt2 = _local_solution(ci, cj, c, vel, a, 1.0)
         wn = 1.0 / c[a, C_IWN]
         wt = 1.0 / c[a, C_IWT]
         _accumulate(out, wn * (pn - pn2), wt * (pt - pt2), pn, pt, pn2, pt2, wn, wt)
