@@ -9,30 +9,21 @@ import numpy as np
 import pytest
 from simhelpers import make_system
 
-from tiltpile import config
 from tiltpile.bench import settle
-from tiltpile.bench.flow_caps import rebuilt_state
-from tiltpile.runner import simulate
 from tiltpile.sim import protocol
 from tiltpile.sim.solver import IMPULSE, SWEEPS, natural_residual, nlgs
 
-CAP = 40  # the tiny run's solver.max_iter: most of its tilt steps stop there
+CAP = 40  # the tiny run's solver.max_iter (conftest.TINY_CAP)
 
 
-@pytest.fixture(scope="module")
-def run_file(tmp_path_factory):
-    path = tmp_path_factory.mktemp("settle") / "run.h5"
-    cfg = config.load("smoke", overrides=["scene.n=60", "scene.box_length=10.0",
-                                          "protocol.theta_max_deg=3.0", f"solver.max_iter={CAP}",
-                                          "solver.tol=1e-7"])
-    simulate(cfg, 1, path, progress=False)
-    return path
+@pytest.fixture
+def run_file(tiny_run):
+    return tiny_run
 
 
-@pytest.fixture(scope="module")
-def state(run_file):
-    """(config, seed, theta, state) of frame 20 of the tiny run, impulses rebuilt."""
-    return rebuilt_state(run_file, 20, 2)
+@pytest.fixture
+def state(tiny_state):
+    return tiny_state
 
 
 def _system(state):

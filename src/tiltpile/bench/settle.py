@@ -327,16 +327,11 @@ def study(run_path, frames, steps: int, every: int, long: int, warm: int = 10,
     rows, points = [], None
     with tqdm(total=len(frames) * steps, unit="step", desc="settle", disable=not progress,
               file=sys.stderr) as bar:
-        for f in frames:
-            bar.set_postfix_str(f"frame {f}: rebuilding the impulses ({warm} steps)")
-            cfg, seed, theta, state = rebuilt_state(run_path, f, warm)
-            s = protocol.make_system(cfg, seed)
-            s.restore(state)
+        for f, cfg, theta, s in frame_systems(run_path, frames, warm, bar):
             cap, dth = cfg.solver.max_iter, cfg.protocol.tilt_per_step_deg
             points = log_points(every, cap, max(long, cap))
             recs, t0 = [], time.perf_counter()
             for k in range(steps):
-                bar.set_postfix_str(f"frame {f} ({theta:.2f} deg)")
                 prepare_step(s, theta + k * dth, dth)
                 recs.append(solve_step(s, points, vtol))
                 finish_step(s)
@@ -447,18 +442,50 @@ def _fail(msg: str):
     raise SystemExit(f"python -m tiltpile.bench.settle: error: {msg}")
 
 
-def _check_run(path, frames) -> None:
-    """One-line errors for a run file that cannot be read and frames it does not have."""
+def read_results(paths, fail=_fail) -> list[dict]:
+    """The JSON files of earlier ``--json`` measurements (``--plot``), one-line errors through
+    ``fail``."""
+    results = []
+    for p in paths:
+        try:
+            results.append(json.loads(Path(p).read_text()))
+        except (OSError, ValueError) as e:
+            fail(f"cannot read {p}: {e}")
+    return results
+
+
+def check_outputs(paths, fail=_fail) -> None:
+    """A one-line error (through ``fail``) for an output file whose directory does not exist."""
+    for p in paths:
+        if p and not Path(p).resolve().parent.is_dir():
+            fail(f"no such directory for {p}")
+
+
+def frame_systems(run_path, frames, warm: int, bar):
+    """For each frame: (frame, config, theta [deg], system) rebuilt at the frame
+    (``flow_caps.rebuilt_state``, ``warm`` steps), telling the progress bar ``bar``."""
+    for f in frames:
+        bar.set_postfix_str(f"frame {f}: rebuilding the impulses ({warm} steps)")
+        cfg, seed, theta, state = rebuilt_state(run_path, f, warm)
+        s = protocol.make_system(cfg, seed)
+        s.restore(state)
+        bar.set_postfix_str(f"frame {f} ({theta:.2f} deg)")
+        yield f, cfg, theta, s
+
+
+def check_run(path, frames, fail=_fail) -> None:
+    """One-line errors (through ``fail``) for a run file that cannot be read and frames it does
+    not have."""
     from tiltpile.store import RunFileError, open_run
 
     try:
         with open_run(path) as r:
             n = r.n_frames
     except RunFileError as e:
-        _fail(str(e))
+        fail(str(e))
     bad = [f for f in frames if not 0 <= f < n]
     if bad:
-        _fail(f"frame {bad[0]} out of range: {path} has frames 0 to {n - 1}")
+        fail(f"frame {bad[0]} out of range: {path} has frames 0 to {n - 1}")
 
 
 def main(argv=None) -> dict:
@@ -480,22 +507,15 @@ def main(argv=None) -> dict:
     if a.plot:
         if not a.chart:
             _fail("--plot needs --chart PNG")
-        results = []
-        for p in a.plot:
-            try:
-                results.append(json.loads(Path(p).read_text()))
-            except (OSError, ValueError) as e:
-                _fail(f"cannot read {p}: {e}")
+        results = read_results(a.plot)
         plot(results, a.chart)
         return dict(results=results)
     if not a.run or not a.frames:
         _fail("give a run file and --frames (or --plot JSON ... --chart PNG)")
     if a.steps < 1 or a.every < 1 or a.long < 1 or a.warm < 0 or not a.vtol > 0:
         _fail("--steps, --every and --long must be >= 1, --warm >= 0 and --vtol > 0")
-    for p in (a.json, a.chart):
-        if p and not Path(p).resolve().parent.is_dir():
-            _fail(f"no such directory for {p}")
-    _check_run(a.run, a.frames)
+    check_outputs((a.json, a.chart))
+    check_run(a.run, a.frames)
     result = study(a.run, a.frames, a.steps, a.every, a.long, a.warm, a.vtol, progress=not a.quiet)
     if a.json:
         Path(a.json).write_text(json.dumps(result))
