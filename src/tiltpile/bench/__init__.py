@@ -13,6 +13,7 @@ nothing when imported (``python -m tiltpile.bench`` lists them):
 ``flow_caps``          the iteration cap in a flowing pile, from a frame of a run
 ``precursor_caps``     the iteration cap between precursor events, from frames of a run
 ``settle``             when NLGS velocities settle (LMGC90's norms) against the motion of a long solve
+``coarse``             the most a coarse correction (rigid blocks, block stresses) could remove of NLGS's error
 ``compare_ensembles``  onset, z and n_m of ensembles that differ in one setting
 ``guard``              what a cheaper setting costs against how far it moves the figure numbers
 ``store_filters``      size and time of the run file's checksums and of compression
@@ -22,4 +23,4 @@ Measurement code sits beside the command line: it imports ``config``, ``sim``, `
 """
 
 STUDIES = ("pile", "timing", "chart", "solver_micro", "solver_variants", "flow_caps",
-           "precursor_caps", "settle", "compare_ensembles", "guard", "store_filters")
+           "precursor_caps", "settle", "coarse", "compare_ensembles", "guard", "store_filters")
