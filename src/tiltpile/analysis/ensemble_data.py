@@ -178,15 +178,22 @@ def load_records(data_dir, preset: str | None = None, **analysis_params) -> Ense
 
 
 def ensemble_cost(costs: list[dict]) -> dict:
-    """What the runs cost, from each run file's ``Run.cost``: per run, the median wall seconds of
-    the runs simulated in one invocation (``seconds_per_run``; a resumed run's seconds cover only
-    its last part, so it is left out), and the mean time steps, NLGS sweeps and capped steps.
-    Keys are None where no run file records them (files written before they were counted)."""
+    """What the runs cost, from each run file's ``Run.cost``: per run, the median wall seconds
+    (``seconds_per_run``) over the runs whose whole wall time is known: the sum over invocations
+    (``wall_seconds``) where every invocation was counted, else the seconds of a run simulated in
+    one invocation (a resumed run's ``seconds`` cover only its last part, so such a run is left
+    out); and the mean time steps, NLGS sweeps and capped steps. Keys are None where no run file
+    records them (files written before they were counted)."""
     def mean(key):
         x = [c[key] for c in costs if key in c]
         return float(np.mean(x)) if x else None
 
-    whole = [c["seconds"] for c in costs if "seconds" in c and c.get("resumed_from_frame", -1) < 0]
+    def whole_seconds(c):
+        if c.get("wall_seconds_whole"):
+            return c["wall_seconds"]
+        return c["seconds"] if "seconds" in c and c.get("resumed_from_frame", -1) < 0 else None
+
+    whole = [w for w in map(whole_seconds, costs) if w is not None]
     return {"runs_timed": len(whole),
             "seconds_per_run": float(np.median(whole)) if whole else None,
             "steps_per_run": mean("steps"), "sweeps_per_run": mean("sweeps"),

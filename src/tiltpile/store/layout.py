@@ -59,6 +59,10 @@ ATTRS = {
         "capped_steps": "steps of the whole run that stopped at solver.max_iter",
         "seconds": "wall time of the invocation that finished the run [s]",
         "resumed_from_frame": "the frame that invocation resumed from; -1: not resumed",
+        "wall_seconds": "wall time of the run summed over its invocations, each interrupted one "
+                        "up to its last checkpoint [s]",
+        "wall_seconds_whole": "true when every invocation was counted (false: the run was "
+                              "resumed from a checkpoint written before this sum existed)",
     },
     "deposition": {
         "steps": "deposition steps",

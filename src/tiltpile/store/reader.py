@@ -76,6 +76,9 @@ class Run:
         self.cost = {k: int(a[k]) for k in ("steps", "sweeps", "capped_steps") if k in a}
         if "seconds" in a:  # wall time of the invocation that finished it
             self.cost.update(seconds=float(a["seconds"]), resumed_from_frame=int(a["resumed_from_frame"]))
+        if "wall_seconds" in a:  # summed over the invocations (files before it: absent)
+            self.cost.update(wall_seconds=float(a["wall_seconds"]),
+                             wall_seconds_whole=bool(a["wall_seconds_whole"]))
         h = self.f.get("health")
         self.health = {k: json.loads(v) if k == "warnings" else v
                        for k, v in (h.attrs.items() if h is not None else ())}

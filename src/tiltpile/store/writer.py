@@ -7,6 +7,7 @@ import contextlib
 import hashlib
 import json
 import os
+import time
 from pathlib import Path
 
 import h5py
@@ -47,6 +48,7 @@ class RunWriter:
         acquire_lock(self.path)  # before anything is opened or truncated
         self._locked = True
         self._interval_bytes = self._max_interval = 0
+        self._start_clock(0.0, True)
         try:
             self._check_space()
             self._create_file(config_json, config_hash, seed, radius, fixed, box_length, jit)
@@ -131,11 +133,26 @@ class RunWriter:
                             steps=int(ended.steps), sweeps=int(ended.sweeps),
                             capped_steps=int(ended.capped_steps))
 
+    def _start_clock(self, before: float, whole: bool) -> None:
+        """Count this invocation's wall time on top of ``before`` seconds, those of the earlier
+        invocations up to their last checkpoints (``whole``: all of them were counted)."""
+        self._wall_before, self._wall_whole, self._wall_t0 = float(before), bool(whole), time.perf_counter()
+
+    def wall_seconds(self) -> float:
+        """The run's wall time so far: the earlier invocations' up to their last checkpoints
+        (the work an interruption loses is done again, and counted, by the next one) plus this
+        invocation's."""
+        return self._wall_before + (time.perf_counter() - self._wall_t0)
+
     def write_timing(self, seconds: float, resumed_from_frame: int | None) -> None:
-        """Wall seconds of the invocation that finished the run (root attr ``seconds``) and, if it
-        resumed an interrupted one, the frame it resumed from (``resumed_from_frame``, else -1)."""
+        """Wall seconds of the invocation that finished the run (root attr ``seconds``), the frame
+        it resumed from if it resumed an interrupted one (``resumed_from_frame``, else -1), and the
+        run's wall time summed over its invocations (``wall_seconds``; ``wall_seconds_whole``
+        false when an invocation before this accounting existed went uncounted)."""
         self.f.attrs.update(seconds=float(seconds),
-                            resumed_from_frame=-1 if resumed_from_frame is None else int(resumed_from_frame))
+                            resumed_from_frame=-1 if resumed_from_frame is None else int(resumed_from_frame),
+                            wall_seconds=float(self.wall_seconds()),
+                            wall_seconds_whole=bool(self._wall_whole))
 
     def frame_columns(self, names) -> dict:
         """Per-frame scalar columns written so far (e.g. for the health summary at the end)."""
@@ -220,7 +237,8 @@ class RunWriter:
                 else:
                     g.create_dataset(key, data=value)
             g.attrs.update(n_frames=self.n_frames, config_hash=self.f.attrs["config_hash"],
-                           seed=int(self.f.attrs["seed"]), frames_digest=self.digest.hexdigest())
+                           seed=int(self.f.attrs["seed"]), frames_digest=self.digest.hexdigest(),
+                           wall_seconds=self.wall_seconds(), wall_seconds_whole=self._wall_whole)
             g.close()
             _fsync(tmp)
         except BaseException as e:
@@ -329,6 +347,9 @@ class RunWriter:
                 k = int(g.attrs["n_frames"])
                 digest = str(g.attrs["frames_digest"])
                 seed = int(g.attrs["seed"])
+                # checkpoints written before the wall time was summed lack it: counted from here
+                wall = (float(g.attrs["wall_seconds"]), bool(g.attrs["wall_seconds_whole"])) \
+                    if "wall_seconds" in g.attrs else (0.0, False)
         except (OSError, RuntimeError, KeyError, ValueError):
             return f"its checkpoint {ckpt.name} cannot be read"
         try:
@@ -365,4 +386,5 @@ class RunWriter:
         writer = cls.__new__(cls)  # reopened, not created: skip __init__'s layout
         writer.path, writer.part, writer.ckpt, writer.f = Path(path), part, ckpt, f
         writer.digest = h
+        writer._start_clock(*wall)
         return writer, state
