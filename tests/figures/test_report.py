@@ -219,3 +219,25 @@ def test_the_report_names_the_piles_history(tmp_path):
     # a figure written before the header named the history: neither is claimed
     _, text = _verdicts(tmp_path, [_fig2()])
     assert "freshly deposited" not in text and "as the paper's." not in text
+
+
+def test_scales_table_gives_each_scales_cost(tmp_path):
+    """Sweeps, wall time and core-hours per scale from the JSON's cost record; a scale whose runs
+    were resumed without a summed wall time says so instead of quoting a part."""
+    from tiltpile.report.scales import render_scales
+
+    timed = dict(_fig2(), cost={"runs_timed": 3, "seconds_per_run": 1800.0, "steps_per_run": 1e4,
+                                "sweeps_per_run": 9.3e7, "capped_steps_per_run": 10.0})
+    _write(tmp_path, [timed])
+    lines = render_scales(tmp_path)
+
+    def row(name):
+        return next(line for line in lines if line.startswith(f"| {name} |")).split(" | ")[2]
+
+    assert row("NLGS sweeps per run") == "93.0 M"
+    assert row("wall time per run") == "30.0 min (median of 3 of 3 runs)"
+    assert row("core-hours, all runs") == "~1.5 (median x 3 runs)"
+    _write(tmp_path, [dict(timed, cost=dict(timed["cost"], runs_timed=0, seconds_per_run=None))])
+    lines = render_scales(tmp_path)
+    assert row("wall time per run") == "not recorded whole (resumed runs)"
+    assert row("core-hours, all runs") == "n/a"

@@ -53,7 +53,22 @@ def _scale_rows(n2: dict, doc: dict | None) -> dict[str, str]:
         "<z> quiet": _ci(n, "z_quiet_run_mean", ".3f"),
         "<n_m> quiet": _ci(n, "n_m_quiet_run_mean", ".3f"),
         "quiet frames below the line": _ci(n, "quiet_below_run_mean", ".1%"),
+        **_cost_rows(doc),
     }
+
+
+def _cost_rows(doc: dict) -> dict[str, str]:
+    """What a run of the scale cost, from the runs' own cost records (the JSON's ``cost``,
+    ``ensemble_data.ensemble_cost``): NLGS sweeps, wall time per run (the median over the runs
+    whose whole wall time is known) and the core-hours of all the runs at that median."""
+    cost, n_runs = doc.get("cost") or {}, doc.get("n_runs")
+    sweeps, sec, timed = _num(cost.get("sweeps_per_run")), _num(cost.get("seconds_per_run")), cost.get("runs_timed")
+    wall = (f"{_f(sec / 60.0, '.1f')} min (median of {timed} of {n_runs} runs)" if math.isfinite(sec)
+            else "not recorded whole (resumed runs)")
+    hours = (f"~{_f(sec * n_runs / 3600.0, '.2g')} (median x {n_runs} runs)"
+             if math.isfinite(sec) and n_runs else "n/a")
+    return {"NLGS sweeps per run": f"{_f(sweeps / 1e6, '.1f')} M" if math.isfinite(sweeps) else "n/a",
+            "wall time per run": wall, "core-hours, all runs": hours}
 
 
 def render_scales(figures_dir) -> list[str]:
