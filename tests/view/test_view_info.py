@@ -28,6 +28,7 @@ def test_info_of_a_run(tiny_run, tmp_path, capsys):
         cost = run.cost
     assert (f"ended      by theta_max; {cost['steps']} steps, {cost['sweeps']} sweeps, "
             f"{cost['capped_steps']} capped") in text and "prepared" not in text
+    assert "wall time  " in text and "summed over the invocations" in text and "partial" not in text
     # first onsets as the observables find them
     frames, _ = run_observables(tiny_run)
     th = frames.loc[frames["onset"], "theta_deg"].to_numpy()
@@ -145,3 +146,11 @@ def test_info_into_a_closed_pipe_is_quiet(tiny_run):
                        env={"PATH": "/usr/bin:/bin", "PYTHONUNBUFFERED": "1",
                             "NUMBA_CACHE_DIR": __import__("os").environ.get("NUMBA_CACHE_DIR", "")})
     assert p.stdout == "run file  " and p.stderr == ""
+
+
+def test_durations_read_as_hours_minutes_or_seconds():
+    from tiltpile.view.info import _duration
+
+    assert _duration(12.34) == "12.3 s"
+    assert _duration(185) == "3 min 05 s"
+    assert _duration(3 * 3600 + 2 * 60 + 59) == "3 h 02 min"

@@ -41,6 +41,14 @@ class InfoError(ValueError):
 # ----------------------------------------------------------------------------------------------
 # formatting helpers
 
+def _duration(seconds: float) -> str:
+    """``1 h 02 min``, ``3 min 05 s`` or ``12.3 s``."""
+    if seconds >= 3600:
+        return f"{int(seconds // 3600)} h {int(seconds % 3600 // 60):02d} min"
+    if seconds >= 60:
+        return f"{int(seconds // 60)} min {int(seconds % 60):02d} s"
+    return f"{seconds:.1f} s"
+
 
 def _toml_value(v) -> str:
     if isinstance(v, (bool, np.bool_)):
@@ -225,6 +233,10 @@ def run_info(path, progress: bool = False) -> str:
     out.append(f"ended      by {'the slide (protocol.end_ke)' if s['end_reason'] == 'slide' else 'theta_max'}"
                + (f"; {cost['steps']} steps, {cost['sweeps']} sweeps, {cost['capped_steps']} capped"
                   if cost else ""))
+    if "wall_seconds" in cost:
+        out.append(f"wall time  {_duration(cost['wall_seconds'])} summed over the invocations"
+                   + ("" if cost["wall_seconds_whole"] else
+                      " since it was resumed from a checkpoint without this sum (partial)"))
     h = s["health"]
     if h:
         warn = h.get("warnings") or []
