@@ -107,6 +107,14 @@ def norm2(e, w) -> float:
     return float(np.sum(w * e * e))
 
 
+def _cells(points, block: float) -> tuple[np.ndarray, int]:
+    """(block index of every point, number of blocks holding a point): the square grid of
+    ``block`` d laid over the box."""
+    ids = np.unique(np.floor(points / block).astype(np.int64), axis=0, return_inverse=True)[1]
+    ids = ids.reshape(-1)
+    return ids, int(ids.max()) + 1 if ids.size else 0
+
+
 def rigid_projection(e, w, pos, radius, block: float) -> np.ndarray:
     """P e (bodies, 3) for the block-rigid subspace: per block, the energy-orthogonal projection
     on translation x, translation y and rotation about the block's centre of mass (an orthogonal
@@ -115,10 +123,8 @@ def rigid_projection(e, w, pos, radius, block: float) -> np.ndarray:
     n = pos.shape[0]
     m = w[:n, 0]
     sel = m > 0.0
-    ids = np.unique(np.floor(pos[sel] / block).astype(np.int64), axis=0, return_inverse=True)[1]
-    ids = ids.reshape(-1)
+    ids, nb = _cells(pos[sel], block)
     es, m, x, r = e[:n][sel], m[sel], pos[sel], radius[sel]
-    nb = int(ids.max()) + 1
 
     def bsum(v):
         return np.bincount(ids, weights=v, minlength=nb)
@@ -171,9 +177,7 @@ def stress_basis(ci, c, pos, radius, block: float, gradient: bool) -> sp.csr_mat
     i = ci.astype(np.int64)
     pt_x = pos[i, 0] - radius[i] * nx
     pt_y = pos[i, 1] - radius[i] * ny
-    cell = np.floor(np.stack([pt_x, pt_y], axis=1) / block).astype(np.int64)
-    ids = np.unique(cell, axis=0, return_inverse=True)[1].reshape(-1)
-    nb = int(ids.max()) + 1
+    ids, nb = _cells(np.stack([pt_x, pt_y], axis=1), block)
     count = np.bincount(ids, minlength=nb)
     mods = [np.ones(C)]
     if gradient:
@@ -196,9 +200,7 @@ def stress_basis(ci, c, pos, radius, block: float, gradient: bool) -> sp.csr_mat
 def interface_basis(ci, cj, pos, block: float) -> sp.csr_matrix:
     """Q (2 C, 2 m): the impulses (p_n, p_t) of the m contacts whose bodies lie in different
     blocks (grains binned by their centres; each wall a block of its own), one column each."""
-    cell = np.floor(pos / block).astype(np.int64)
-    ids = np.concatenate([np.unique(cell, axis=0, return_inverse=True)[1].reshape(-1),
-                          -1 - np.arange(3)])  # walls: bodies n, n + 1, n + 2
+    ids = np.concatenate([_cells(pos, block)[0], -1 - np.arange(3)])  # walls: bodies n, n + 1, n + 2
     between = np.nonzero(ids[ci] != ids[cj])[0]
     m = between.size
     rows = np.concatenate([2 * between, 2 * between + 1])
@@ -229,17 +231,25 @@ class Projector:
         return float(ew @ ew - r @ r)
 
 
-def correlation(e, w, pos, at=CORR_AT) -> list[float]:
-    """C(r) = <e_i . e_j> / <|e|^2> of the translational part over pairs of mobile grains whose
-    centres are r to r + 1 apart, r in ``at`` (nan where no pair is)."""
+def neighbour_pairs(w, pos, at=CORR_AT):
+    """(mobile grains, their pairs closer than max(at) + 1, the pairs' distances): what
+    ``correlation`` bins, the same for every field of one step."""
     from scipy.spatial import cKDTree
 
     n = pos.shape[0]
     sel = w[:n, 0] > 0.0
-    x, v = pos[sel], e[:n][sel, :2]
-    var = float(np.mean(np.sum(v * v, axis=1)))
+    x = pos[sel]
     pairs = cKDTree(x).query_pairs(max(at) + 1.0, output_type="ndarray")
-    d = np.linalg.norm(x[pairs[:, 0]] - x[pairs[:, 1]], axis=1)
+    return sel, pairs, np.linalg.norm(x[pairs[:, 0]] - x[pairs[:, 1]], axis=1)
+
+
+def correlation(e, w, pos, at=CORR_AT, pairs=None) -> list[float]:
+    """C(r) = <e_i . e_j> / <|e|^2> of the translational part over pairs of mobile grains whose
+    centres are r to r + 1 apart, r in ``at`` (nan where no pair is); ``pairs``: those of
+    ``neighbour_pairs`` (found here if None)."""
+    sel, pairs, d = neighbour_pairs(w, pos, at) if pairs is None else pairs
+    v = e[: pos.shape[0]][sel, :2]
+    var = float(np.mean(np.sum(v * v, axis=1)))
     prod = np.sum(v[pairs[:, 0]] * v[pairs[:, 1]], axis=1)
     out = []
     for r in at:
@@ -288,9 +298,10 @@ def measure_step(s, caps, long: int, blocks) -> dict:
     proj = {(space, b): Projector(g, stress_basis(s.ci, s.c, s.pos, s.radius, b,
                                                   space == "stress_grad"), w)
             for space in SPACES[1:] for b in blocks}
+    pairs = neighbour_pairs(w, s.pos)
     rec = dict(sweeps=sol["sweeps"], long_sweeps=sol["long_sweeps"], error={}, captured={},
                corr_error={}, motion_rigid=[], change_rigid=[],
-               corr_motion=correlation(ref, w, s.pos))
+               corr_motion=correlation(ref, w, s.pos, pairs=pairs))
     change = ref - sol["start"][:, :3]
     e_change = norm2(change, w)
     for b in blocks:
@@ -310,7 +321,7 @@ def measure_step(s, caps, long: int, blocks) -> dict:
         rec["captured"][k] = {
             "rigid": [rigid_captured(e, w, s.pos, s.radius, b) / ee for b in blocks],
             **{space: [proj[space, b].captured(e) / ee for b in blocks] for space in SPACES[1:]}}
-        rec["corr_error"][k] = correlation(e, w, s.pos)
+        rec["corr_error"][k] = correlation(e, w, s.pos, pairs=pairs)
     return rec
 
 
@@ -335,8 +346,7 @@ def feasible(p, mu) -> np.ndarray:
 
 def _n_blocks(s, block: float) -> int:
     """Blocks of ``block`` d holding a mobile grain."""
-    mob = s.vel[: s.n, V_IM] > 0.0
-    return int(np.unique(np.floor(s.pos[mob] / block).astype(np.int64), axis=0).shape[0])
+    return _cells(s.pos[s.vel[: s.n, V_IM] > 0.0], block)[1]
 
 
 def oracle_step(s, every: int, upto: int, long: int, blocks, ridge: float = ORACLE_RIDGE,
@@ -345,13 +355,14 @@ def oracle_step(s, every: int, upto: int, long: int, blocks, ridge: float = ORAC
     iterate takes, every ``every`` sweeps, the best correction an impulse subspace holds: the
     energy-orthogonal projection of its velocity error against the ``long`` solve, applied to the
     impulses (p -= Q x) and through G to the velocities (v -= G Q x), so that the iterate stays a
-    consistent pair (v = v_free + G p) and Gauss-Seidel goes on from it. No coarse problem can pick
-    a better element of the subspace (an oracle: it knows the answer); what this iteration does
-    not gain, no coarse correction in that subspace gains. Errors ||v - v_ref|| / ||v_ref|| at
-    every ``every`` sweeps up to ``upto``, after the correction, each subspace's dimension
-    (``dims``, beside ``unknowns``: 2 per contact), and ``drift``: how far the final iterate is
-    from a consistent pair, max |v - v_start - G (p - p_start)| / max |v_ref| (rounding only). The projection's ridge is ``ridge`` x the
-    largest diagonal entry of its normal equations; ``feasible_only``: the corrected impulses are
+    consistent pair (v = v_free + G p) and Gauss-Seidel goes on from it. No coarse problem picks
+    a better move in the subspace (an oracle: it knows the answer), so this is the ceiling of each
+    correction; the later sweeps also depend on the impulses, chosen here by least norm (module
+    docstring). Errors ||v - v_ref|| / ||v_ref|| at every ``every`` sweeps up to ``upto``, after
+    the correction, each subspace's dimension (``dims``, beside ``unknowns``: 2 per contact), and
+    ``drift``: how far the final iterate is from a consistent pair,
+    max |v - v_start - G (p - p_start)| / max |v_ref| (rounding only). The projection's ridge is
+    ``ridge`` x the largest diagonal entry of its normal equations; ``feasible_only``: the corrected impulses are
     projected on their Coulomb cones (and the velocities moved with them) before the sweeps go
     on. Then ``s`` takes the run's own solve (one call at solver.max_iter)."""
     p = s.params
@@ -401,7 +412,10 @@ def oracle_step(s, every: int, upto: int, long: int, blocks, ridge: float = ORAC
                             else float("nan"))
             name = "plain" if b is None else f"{space}/{b:g}"
             errors[name] = errs
-            dims[name] = 0 if q is None else 3 * _n_blocks(s, b) if space == "rigid" else int(q.shape[1])
+            if space == "rigid":  # 3 per block; q is every contact's impulses
+                dims[name] = 3 * _n_blocks(s, b)
+            else:
+                dims[name] = 0 if q is None else int(q.shape[1])
             # the iterate stays a consistent pair: v - v_start = G (p - p_start)
             dv = g @ (c[:, IMPULSE] - s.c[:, IMPULSE]).reshape(-1)
             drift[name] = float(np.abs((vel - s.vel)[:, :3].reshape(-1) - dv).max() / scale)
