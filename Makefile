@@ -199,11 +199,14 @@ $(FIG_JSON): $(FIGURES)/%.json: notebooks/%.ipynb src/tiltpile/figures/$$(call f
 	@test -f $@ || { echo "$< did not write $@"; exit 1; }
 	@touch $@
 
-# The report reads (tiltpile.report.inputs) the figures' JSON, Fig. 2's JSON of every scale (its
-# table of scales) and the preparation and <z> studies of the default scale's directory.
-REPORT_ROOT := $(if $(filter smoke paper paper-fresh,$(notdir $(FIGURES))),$(patsubst %/,%,$(dir $(FIGURES))),$(FIGURES))
+# The report reads (tiltpile.report.inputs) the figures' JSON, Fig. 2's JSON of the smoke scale
+# (its table of scales), every figure's JSON of the compared scales (default, default-fresh, paper,
+# paper-fresh: every claim at every scale) and the preparation and <z> studies of the default
+# scale's directory.
+REPORT_ROOT := $(if $(filter smoke default-fresh paper paper-fresh,$(notdir $(FIGURES))),$(patsubst %/,%,$(dir $(FIGURES))),$(FIGURES))
 REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparation.json \
-                  $(foreach s,/ /smoke/ /paper/ /paper-fresh/,$(REPORT_ROOT)$(s)fig2_avalanche_criterion.json) \
+                  $(REPORT_ROOT)/smoke/fig2_avalanche_criterion.json \
+                  $(foreach s,/ /default-fresh/ /paper/ /paper-fresh/,$(REPORT_ROOT)$(s)fig*.json) \
                   $(REPORT_ROOT)/preparation.json $(REPORT_ROOT)/zcount.json)
 $(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli/report.py src/tiltpile/__init__.py \
            | $(STAMP)

@@ -162,6 +162,17 @@ def test_fig2_numbers_on_known_onsets_and_energies():
     assert np.isnan(numbers["theta_m_ci_low"])                 # two runs: no interval
     strict, _ = fig2.compute(_ensemble(fr), slide_sustain_deg=0.5)
     assert np.all(np.isnan(strict["theta_slide_per_run"])) and strict["n_runs_with_slide"] == 0
+    # the avalanche angle: the same detector at a fixed threshold, not the panel-a one. The
+    # avalanches flow at 10^-2.5..10^-2: above 1e-3 (the default) from their onsets, never above
+    # 2e-2; the quiet frames (< 1e-4) never pass either
+    assert numbers["avalanche_ke"] == fig2.AVALANCHE_KE == 1e-3
+    assert numbers["theta_avalanche_per_run"][:2] == pytest.approx([1.0, 1.5])
+    assert numbers["n_runs_with_avalanche"] == 2 and numbers["avalanche_minus_onset_mean"] == 0.0
+    high, _ = fig2.compute(_ensemble(fr), slide_sustain_deg=0.1, avalanche_ke=2e-2)
+    assert high["n_runs_with_avalanche"] == 0 and high["theta_slide_per_run"][:2] == pytest.approx(
+        [1.0, 1.5])                                            # the flow detector is unchanged
+    with pytest.raises(ValueError, match="avalanche_ke must be > 0"):
+        fig2.compute(_ensemble(fr), avalanche_ke=0.0)
     # per-run quiet means: run 3 holds the 10 frames below the line
     assert numbers["quiet_below_run_mean"] == pytest.approx((10 / 700) / 3)
     assert numbers["z_quiet_run_mean"] == pytest.approx(3.3)
@@ -339,3 +350,13 @@ def test_snapshot_layers_categories_and_segments():
     geo = snapshot.snapshot_layers(dict(snap, next_position=moved), lost_gap=1e-3)
     assert (geo["n_failing"], geo["n_failing_in_cluster"]) == (2, 1)
     assert geo["category"][0] == snapshot.CLUSTER and geo["category"][2] == snapshot.FAIL_OUTSIDE
+
+
+def test_the_avalanche_angle_is_the_large_slide_of_repose():
+    """One definition of the large slide in the package: fig2's avalanche angle, the slide of
+    ``tiltpile repose`` and the paper preset's end of run share the threshold."""
+    from tiltpile import config as cfgmod
+    from tiltpile.repose import KE_SLIDE
+
+    assert fig2.AVALANCHE_KE == KE_SLIDE == cfgmod.load("paper").protocol.end_ke
+

@@ -14,6 +14,7 @@ def _doc(name, numbers):
 
 
 def _write(tmp_path, docs):
+    tmp_path.mkdir(parents=True, exist_ok=True)
     for d in docs:
         (tmp_path / f"{d['figure']}.json").write_text(json.dumps(d))
 
@@ -63,6 +64,7 @@ def _fig2(**numbers):
             "theta_m_ci_low": 8.1, "theta_m_ci_high": 10.9, "n_runs_with_onset": 6,
             "theta_slide_per_run": [18.4, None, 18.65, None, None, None], "slide_ke": 4e-4,
             "slide_sustain_deg": 0.5, "theta_end_min": 22.0,
+            "theta_avalanche_per_run": [18.4, None, 18.65, None, None, None], "avalanche_ke": 1e-3,
             "z_quiet_run_mean": 3.215, "z_quiet_run_mean_ci_low": 3.209,
             "z_quiet_run_mean_ci_high": 3.22, "lost_zero_fraction": 0.49,
             "lost_bimodality": {"ashman_d": 3.3, "delta_bic": 280.0, "valley_depth": 0.6,
@@ -93,13 +95,20 @@ def test_onset_claims_compare_like_with_like(tmp_path):
     assert v["robust"] == "disagrees"             # median 5 frames
     assert "> 22.0" in _row(text, next(c.text for c in report.CLAIMS if c.key == "theta_slide"))
     # more than half the runs slide: the median is known and judged against 21 +- 2 deg
-    v, _ = _verdicts(tmp_path, [_fig2(theta_slide_per_run=[20.1, 21.5, 19.9, 22.6, None],
-                                      theta_m_max=15.0, onset_shift_median_frames=1.0,
-                                      z_quiet_run_mean_ci_high=3.46)])
+    v, text = _verdicts(tmp_path, [_fig2(theta_avalanche_per_run=[20.1, 21.5, 19.9, 22.6, None],
+                                         theta_m_max=15.0, onset_shift_median_frames=1.0,
+                                         z_quiet_run_mean_ci_high=3.46)])
     assert v["theta_slide"] == "agrees" and v["theta_m"] == "agrees"
     assert v["robust"] == "agrees" and v["z_mean"] == "agrees"
-    v, _ = _verdicts(tmp_path, [_fig2(theta_slide_per_run=[15.0, 15.5, 16.0, None])])
+    assert "KE per grain > 1e-03" in _row(text, next(c.text for c in report.CLAIMS
+                                                     if c.key == "theta_slide"))
+    v, _ = _verdicts(tmp_path, [_fig2(theta_avalanche_per_run=[15.0, 15.5, 16.0, None])])
     assert v["theta_slide"] == "disagrees"
+    # the avalanche angle is judged at its fixed threshold, not at the first sustained flow above
+    # the Fig. 2a threshold (with 4000 grains a slow flow some 3 deg before the slide)
+    v, _ = _verdicts(tmp_path, [_fig2(theta_slide_per_run=[15.0, 15.5, 16.0, 17.0],
+                                      theta_avalanche_per_run=[21.2, 20.8, 22.2, 21.25])])
+    assert v["theta_slide"] == "agrees"
     # the cutoff between the means but on the upper population's peak is not in the gap
     bm = dict(_fig2()["numbers"]["lost_bimodality"], cutoff_between_means=True)
     v, _ = _verdicts(tmp_path, [_fig2(lost_bimodality=dict(bm, cutoff_density_ratio=1.9))])
@@ -241,3 +250,56 @@ def test_scales_table_gives_each_scales_cost(tmp_path):
     lines = render_scales(tmp_path)
     assert row("wall time per run") == "not recorded whole (resumed runs)"
     assert row("core-hours, all runs") == "n/a"
+
+
+def test_every_claim_at_every_scale_and_why_a_verdict_changes(tmp_path):
+    """The report sets the verdicts of each compared scale side by side (smoke left out, "not yet
+    run" where a scale has no figures) and, for a claim whose verdict changes, gives each scale's
+    value and the note of the scale where it does not agree (scale-aware: the grains count)."""
+    root = tmp_path / "figures"
+    bm = {"ashman_d": 3.3, "delta_bic": 280.0, "valley_depth": 0.6, "valley": 0.002,
+          "means": [-3.1, -2.05], "cutoff_between_means": False, "cutoff_density_ratio": 0.72}
+    _write(root, [_fig2(lost_bimodality=bm, n_active_mean=1800.0)])
+    paper = dict(_fig2(lost_bimodality=dict(bm, cutoff_between_means=True, cutoff_density_ratio=0.5),
+                       theta_avalanche_per_run=[21.2, 20.8, 22.2], n_active_mean=7200.0),
+                 preset="paper", n_grains=4000)
+    _write(root / "paper", [paper])
+    _write(root / "smoke", [_fig2()])
+    text = report.write_report(root, tmp_path / "R.md").read_text()
+    sec = text.split("## Each claim at every scale")[1].split("\n## ")[0]
+    assert "| claim | default | default-fresh | paper | paper-fresh |" in sec and "smoke" not in sec
+    by = {c.key: c.text for c in report.CLAIMS}
+    assert _row(sec, by["cutoff_in_gap"]).split(" | ")[1:] == [
+        "disagrees", "not yet run", "agrees", "not yet run |"]
+    assert _row(sec, by["theta_slide"]).split(" | ")[1:4] == ["inconclusive", "not yet run", "agrees"]
+    assert _row(sec, "piles").startswith("| piles | 250 x 3 | not yet run | 4000 x 3 |")
+    changed = [line for line in sec.splitlines() if line.startswith("- **")]
+    assert {line.split("**")[1] for line in changed} == {by["cutoff_in_gap"], by["theta_slide"]}
+    gap = next(line for line in changed if by["cutoff_in_gap"] in line)
+    assert "At default: the gap between our two populations" in gap
+    assert "250 grains the 2% cutoff is ~36 contacts" in gap and "At paper" not in gap
+    # the main table's note names the scale of its own figures
+    assert "250 grains the 2% cutoff is ~36 contacts" in text.split("## Notes")[1]
+    # a note several scales share is said once, naming them
+    _write(root / "default-fresh", [_fig2(lost_bimodality=bm, n_active_mean=1800.0)])
+    text = report.write_report(root, tmp_path / "R.md").read_text()
+    sec = text.split("## Each claim at every scale")[1].split("\n## ")[0]
+    gap = next(line for line in sec.splitlines() if line.startswith(f"- **{by['cutoff_in_gap']}"))
+    assert gap.count("the gap between our two populations") == 1
+    assert "At default and default-fresh: the gap" in gap
+    # one scale alone: no such section
+    only = tmp_path / "alone"
+    _write(only, [_fig2()])
+    assert "## Each claim at every scale" not in report.write_report(only, tmp_path / "A.md").read_text()
+
+
+def test_the_report_reads_every_figure_of_the_compared_scales(tmp_path):
+    root = tmp_path / "figures"
+    _write(root, [_fig2()])
+    _write(root / "paper", [_fig2(), _doc("fig5_cluster_sizes", {})])
+    _write(root / "smoke", [_fig2(), _doc("fig5_cluster_sizes", {})])
+    read = {p.relative_to(root).as_posix() for p in report.inputs(root)}
+    assert {"fig2_avalanche_criterion.json", "paper/fig2_avalanche_criterion.json",
+            "paper/fig5_cluster_sizes.json", "smoke/fig2_avalanche_criterion.json"} <= read
+    assert "smoke/fig5_cluster_sizes.json" not in read      # smoke is compared by Fig. 2 only
+

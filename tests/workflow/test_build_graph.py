@@ -104,7 +104,11 @@ NEEDS["preparation"] = _notebook_code(ROOT / "notebooks" / "preparation.ipynb")
 NEEDS["zcount"] = _closure(["tiltpile.figures.zcount"]) | {Path("src/tiltpile/cli/zcount.py")}
 NEEDS["report"] = _closure(["tiltpile.report"]) | {Path("src/tiltpile/cli/report.py")}
 SCALE_JSON = [Path("figures/smoke/fig2_avalanche_criterion.json"),
-              Path("figures/paper/fig2_avalanche_criterion.json")]
+              Path("figures/default-fresh/fig2_avalanche_criterion.json"),
+              Path("figures/default-fresh/fig6_cluster_stability.json"),
+              Path("figures/paper/fig2_avalanche_criterion.json"),
+              Path("figures/paper/fig5_cluster_sizes.json"),
+              Path("figures/paper-fresh/fig1_isostaticity.json")]
 STUDY_JSON = [Path("figures/preparation.json"), Path("figures/zcount.json")]
 
 
@@ -212,6 +216,21 @@ def test_the_report_rebuilds_when_any_json_it_reads_changes(tree):
     for rel in sorted(read):
         assert "report" in _plan(tree, rel), f"the report does not rebuild when {rel} changes"
     assert _plan(tree, "figures/smoke/fig2_avalanche_criterion.json") == {"report"}
+
+
+@pytest.mark.parametrize("preset", ["default", "default-fresh", "paper", "smoke"])
+def test_the_report_target_lists_what_the_report_reads_at_every_scale(tree, preset):
+    """The Makefile's REPORT_READS holds every file tiltpile.report.inputs finds for the preset's
+    figures directory (each scale's report reads the other scales' figures too)."""
+    from tiltpile.report import inputs
+
+    r = subprocess.run(["make", "-s", "--eval", "show-reads: ; @echo $(FIGURES) $(REPORT_READS)",
+                        "show-reads", f"PRESET={preset}"], cwd=tree, capture_output=True, text=True,
+                       timeout=60, env=MAKE_ENV)
+    assert r.returncode == 0, r.stderr
+    figures, *listed = r.stdout.split()
+    read = {p.relative_to(tree).as_posix() for p in inputs(tree / figures)}
+    assert len(read) > 5 and read <= set(listed), sorted(read - set(listed))
 
 
 def test_a_missing_study_output_is_rebuilt(tree):

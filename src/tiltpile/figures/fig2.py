@@ -13,14 +13,21 @@
     valley depth, BIC against one Gaussian; :func:`tiltpile.analysis.stats.bimodality`) tells
     whether the frames fall into two populations, as the paper says, with the cutoff between them.
 (c) delta z_gen = z - 3 - n_m of the bulk against theta for a sample run, avalanching frames
-    shaded, and the run's first large slide (dotted).
+    shaded, the run's first sustained flow (dotted, "flow") and its avalanche angle (dash-dotted,
+    "slide").
 (d) Probability density of (z, n_m) over all frames (:func:`tiltpile.analysis.density_2d`), with
     the sample run's trace (quiet black, avalanching red) and the marginal line z = 3 + n_m.
 
-Two onsets per run (:func:`tiltpile.analysis.run_table`): the first frame losing more than the
-cutoff (the paper's theta_m) and the first large slide, the first stretch of frames whose kinetic
-energy per grain stays above the panel-a threshold over at least ``slide_sustain_deg`` of tilt
-(:func:`tiltpile.analysis.first_slide`); both with bootstrap intervals over runs.
+Three onsets per run (:func:`tiltpile.analysis.run_table`), each with a bootstrap interval over
+runs: the first frame losing more than the cutoff (the paper's theta_m); the first sustained flow
+("slide" in the numbers' names), the first stretch of frames whose kinetic energy per grain stays
+above the panel-a threshold over at least ``slide_sustain_deg`` of tilt
+(:func:`tiltpile.analysis.first_slide`); and the avalanche angle, the same with a fixed threshold
+``avalanche_ke`` (1e-3 m g d per grain: the large slide of ``tiltpile repose`` and the paper
+preset's ``protocol.end_ke``), the angle Deboeuf et al. (2005) call theta_a. With 1000 grains the
+panel-a threshold is of the same order (4e-4 to 2e-3) and the two coincide where both are seen;
+with 4000 grains it falls to a few 1e-6, below a slow flow of 1e-5 to 1e-3 per grain that comes
+some 3 deg before the slide (docs/figures.md).
 
 Kinetic-energy threshold (paper: "the value above which the distribution escapes the power law
 reported in the quiet region"): a straight line log10 P = a + b log10 E is fitted, weighted by
@@ -49,6 +56,7 @@ from . import style
 from .data import analysis_params, per_run_quiet
 
 NAME = "fig2_avalanche_criterion"
+AVALANCHE_KE = 1e-3    # m g d per mobile grain: the avalanche angle's threshold (= repose.KE_SLIDE)
 
 
 def _stats(x) -> dict:
@@ -75,8 +83,8 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
             ke_bins_per_decade: int = 5, ke_fit_quantiles=(0.3, 0.8), ke_factor: float = 2.0,
             ke_consecutive: int = 2, lost_bins_per_decade: int | None = None, zn_bins=30,
             robustness_cutoffs=(0.01, 0.02, 0.03, 0.04), max_shift: int = 10,
-            slide_sustain_deg: float | None = None, confidence: float = 0.95
-            ) -> tuple[dict, dict]:
+            slide_sustain_deg: float | None = None, avalanche_ke: float = AVALANCHE_KE,
+            confidence: float = 0.95) -> tuple[dict, dict]:
     """Numbers and plot data of Fig. 2 (module docstring).
 
     sample_seed: run of panels c, d (None: the first run with an onset); ke_column: "ke_trans"
@@ -87,7 +95,8 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
     (numpy.histogram2d); robustness_cutoffs, max_shift:
     :func:`tiltpile.analysis.onset_robustness_ensemble` against the ensemble's cutoff;
     slide_sustain_deg: the least span of a slide (None: the analysis parameter,
-    :data:`tiltpile.analysis.DEFAULT_PARAMS`); confidence: of the bootstrap intervals over runs
+    :data:`tiltpile.analysis.DEFAULT_PARAMS`); avalanche_ke: the avalanche angle's threshold (KE per
+    grain, m g d; > 0); confidence: of the bootstrap intervals over runs
     (:func:`tiltpile.analysis.stats.bootstrap_ci`, BCa, 9999 resamples, seed 0).
 
     numbers:
@@ -104,6 +113,11 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
       theta_slide_mean, _std, _min, _max, n_runs_with_slide, theta_slide_ci_low, _ci_high
       slide_minus_onset_mean       mean over runs with both of (first slide - first onset), deg
       theta_end_min                smallest final tilt of a run (a later slide is not seen)
+      avalanche_ke                 the avalanche angle's threshold (KE per grain), with the same
+                                   least span slide_sustain_deg
+      theta_avalanche_per_run      theta of each run's avalanche (null: none before the end)
+      theta_avalanche_mean, _std, _min, _max, n_runs_with_avalanche, theta_avalanche_ci_low,
+      _ci_high, avalanche_minus_onset_mean   as for the slide
       avalanching_fraction         fraction of all frames that are avalanching
       z_quiet_mean, n_m_quiet_mean, dz_gen_quiet_mean   over quiet frames (bulk, pooled)
       quiet_below_fraction         fraction of quiet frames with delta z_gen < 0 (pooled)
@@ -116,6 +130,7 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
                                    threshold (how well the KE criterion agrees with the
                                    lost-contact one)
       lost_zero_fraction           frames that lose no contact (drawn apart in panel b)
+      n_active_mean                mean number of active contacts of a frame (the cutoff's scale)
       lost_bins_per_decade         the bins of panel b (Freedman-Diaconis unless given)
       lost_bimodality              :func:`tiltpile.analysis.stats.bimodality` of log10 of the
                                    lost fraction of the frames losing >= 1 contact (counts
@@ -143,9 +158,13 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
     slide_ke = p["slide_ke"] if p["slide_ke"] is not None else dep["threshold"]
     th, onset_numbers = _first_onsets(f, ens.seeds, confidence)
     sl, slide_numbers = _first_slides(f, ens.seeds, th, slide_ke, sustain, confidence)
+    if not avalanche_ke > 0.0:
+        raise ValueError(f"avalanche_ke must be > 0 (m g d per grain), got {avalanche_ke}")
+    aa, avalanche_numbers = _first_slides(f, ens.seeds, th, avalanche_ke, sustain, confidence,
+                                          "avalanche")
     lost_numbers, lost_data = _lost_fraction(f, cutoff, lost_bins_per_decade)         # (b)
     seed = ens.sample_seed(sample_seed)
-    numbers = {"cutoff": cutoff, **onset_numbers, **slide_numbers,
+    numbers = {"cutoff": cutoff, **onset_numbers, **slide_numbers, **avalanche_numbers,
                "avalanching_fraction": float(av.mean()) if av.size else np.nan,
                **_quiet_network(f, av, ens.seeds, confidence),
                **_ke_numbers(f, av, dep, ke_column),
@@ -153,7 +172,7 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
                **_robustness(f, cutoff, robustness_cutoffs, max_shift, p["merge_gap"]),
                "sample_seed": seed}
     data = {"cutoff": cutoff, "ke_density": ke_dens, "ke_fit": dep, "ke_column": ke_column,
-            **lost_data, **_sample(f, ens.seeds, seed, sl, ke_column, zn_bins)}       # (c), (d)
+            **lost_data, **_sample(f, ens.seeds, seed, sl, aa, ke_column, zn_bins)}       # (c), (d)
     return numbers, data
 
 
@@ -169,11 +188,13 @@ def _first_onsets(f: pd.DataFrame, seeds, confidence: float) -> tuple[np.ndarray
 
 
 def _first_slides(f: pd.DataFrame, seeds, th: np.ndarray, slide_ke, sustain,
-                  confidence: float) -> tuple[np.ndarray, dict]:
-    """Each run's first large slide (deg, in ``seeds`` order; NaN: none before the end of its
-    tilt): kinetic energy per grain above ``slide_ke`` over at least ``sustain`` deg
+                  confidence: float, name: str = "slide") -> tuple[np.ndarray, dict]:
+    """Each run's first slide (deg, in ``seeds`` order; NaN: none before the end of its tilt):
+    kinetic energy per grain above ``slide_ke`` over at least ``sustain`` deg
     (:func:`tiltpile.analysis.run_table`; no slide is looked for when ``slide_ke`` is not finite),
-    and its numbers, with the gap to the first onsets ``th`` and the smallest final tilt."""
+    and its numbers, with the gap to the first onsets ``th`` and the smallest final tilt. ``name``
+    names the numbers (theta_<name>_per_run, <name>_ke, ...); the span and the final tilt, which
+    every detector shares, are written by the "slide" one only."""
     rt = (run_table(f, slide_ke=float(slide_ke), slide_sustain_deg=sustain)
           if np.isfinite(slide_ke) else None)
     if rt is not None:
@@ -185,14 +206,16 @@ def _first_slides(f: pd.DataFrame, seeds, th: np.ndarray, slide_ke, sustain,
         ends = np.array([float(g["theta_deg"].max()) for _, g in f.groupby("run")])
     ss = _stats(sl)
     both = np.isfinite(sl) & np.isfinite(th)
-    return sl, dict(slide_ke=float(slide_ke), slide_sustain_deg=float(sustain),
-                    theta_slide_per_run=sl, theta_slide_mean=ss["mean"], theta_slide_std=ss["std"],
-                    theta_slide_min=ss["min"], theta_slide_max=ss["max"],
-                    n_runs_with_slide=ss["n"],
-                    **_ci("theta_slide", _st.bootstrap_ci(sl, confidence=confidence)),
-                    slide_minus_onset_mean=float(np.mean(sl[both] - th[both])) if both.any()
-                    else np.nan,
-                    theta_end_min=float(np.min(ends)) if ends.size else np.nan)
+    t = f"theta_{name}"
+    out = {f"{name}_ke": float(slide_ke),
+           **({"slide_sustain_deg": float(sustain)} if name == "slide" else {}),
+           f"{t}_per_run": sl, f"{t}_mean": ss["mean"], f"{t}_std": ss["std"],
+           f"{t}_min": ss["min"], f"{t}_max": ss["max"], f"n_runs_with_{name}": ss["n"],
+           **_ci(t, _st.bootstrap_ci(sl, confidence=confidence)),
+           f"{name}_minus_onset_mean": float(np.mean(sl[both] - th[both])) if both.any() else np.nan}
+    if name == "slide":
+        out["theta_end_min"] = float(np.min(ends)) if ends.size else np.nan
+    return sl, out
 
 
 def _quiet_network(f: pd.DataFrame, av: np.ndarray, seeds, confidence: float) -> dict:
@@ -255,7 +278,8 @@ def _lost_fraction(f: pd.DataFrame, cutoff: float,
     y = _st.dequantized_log_fraction(nl, na, seed=0)
     bm = _st.bimodality(y, cutoff=np.log10(cutoff))
     bm["valley"] = float(10 ** bm["valley"]) if np.isfinite(bm["valley"]) else np.nan
-    numbers = {"lost_zero_fraction": zero, "lost_bins_per_decade": int(bpd), "lost_bimodality": bm}
+    numbers = {"lost_zero_fraction": zero, "lost_bins_per_decade": int(bpd), "lost_bimodality": bm,
+               "n_active_mean": float(np.nanmean(na)) if np.isfinite(na).any() else np.nan}
     data = {"lost_density": lost, "lost_zero_fraction": zero, "lost_mixture": bm,
             "lost_n_finite": n_fin}
     return numbers, data
@@ -298,13 +322,16 @@ def _robustness(f: pd.DataFrame, cutoff: float, robustness_cutoffs, max_shift: i
     return out
 
 
-def _sample(f: pd.DataFrame, seeds, seed, sl: np.ndarray, ke_column: str, zn_bins) -> dict:
-    """Plot data of panels c and d: the sample run ``seed`` (its frames and its first slide, from
-    the per-run slides ``sl`` in ``seeds`` order) and the (z, n_m) density of all frames (None
-    when there are too few)."""
+def _sample(f: pd.DataFrame, seeds, seed, sl: np.ndarray, aa: np.ndarray, ke_column: str,
+            zn_bins) -> dict:
+    """Plot data of panels c and d: the sample run ``seed`` (its frames, its first sustained flow
+    and its avalanche angle, from the per-run angles ``sl`` and ``aa`` in ``seeds`` order) and
+    the (z, n_m) density of all frames (None when there are too few)."""
+    i = list(seeds).index(seed) if seed in seeds else None
     out = {"sample": f[f["run"] == seed][["frame", "theta_deg", "z", "n_m", "dz_gen",
                                            "avalanching", ke_column]].reset_index(drop=True),
-           "sample_slide": float(sl[list(seeds).index(seed)]) if seed in seeds else np.nan}
+           "sample_slide": float(sl[i]) if i is not None else np.nan,
+           "sample_avalanche": float(aa[i]) if i is not None else np.nan}
     try:
         out["zn_density"] = _st.density_2d(f["z"], f["n_m"], bins=zn_bins)
     except _st.InsufficientDataError:
@@ -397,8 +424,8 @@ def _plot_lost(b, data: dict) -> None:
 
 
 def _plot_dz_gen(c, data: dict) -> None:
-    """Panel c: delta z_gen of the sample run against theta, its avalanches shaded and its first
-    large slide dotted."""
+    """Panel c: delta z_gen of the sample run against theta, its avalanches shaded, its first
+    sustained flow dotted and its avalanche angle (the large slide) dash-dotted."""
     s = data["sample"]
     th = s["theta_deg"].to_numpy(float)
     dth = float(np.median(np.diff(th))) if th.size > 1 else 0.1
@@ -407,11 +434,13 @@ def _plot_dz_gen(c, data: dict) -> None:
                   alpha=0.45, lw=0)
     c.axhline(0, color=style.COLORS["marginal"], lw=0.8)
     c.plot(th, s["dz_gen"], color=style.COLORS["quiet"], lw=0.7)
-    t_sl = data.get("sample_slide", np.nan)
-    if np.isfinite(t_sl):
-        c.axvline(t_sl, color=style.COLORS["avalanche"], lw=0.8, ls=":")
-        c.text(t_sl, 0.965, "first slide ", transform=c.get_xaxis_transform(), ha="right",
-               va="top", fontsize=5.5, color=style.COLORS["avalanche"])
+    for key, ls, label, y in (("sample_slide", ":", "flow ", 0.965), ("sample_avalanche", "-.",
+                                                                     "slide ", 0.88)):
+        t = data.get(key, np.nan)
+        if np.isfinite(t):
+            c.axvline(t, color=style.COLORS["avalanche"], lw=0.8, ls=ls)
+            c.text(t, y, label, transform=c.get_xaxis_transform(), ha="right", va="top",
+                   fontsize=5.5, color=style.COLORS["avalanche"])
     c.set_xlabel(r"$\theta$ (deg)")
     c.set_ylabel(r"$\delta z^{gen} = z - 3 - n_m$")
     c.set_xlim(th.min() if th.size else 0, th.max() if th.size else 1)

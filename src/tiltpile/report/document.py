@@ -1,5 +1,6 @@
 """The report itself: load the figures' JSON, render the Markdown (the claims' table, the notes,
-the per-scale and preparation sections, the rules), write it (:func:`write_report`), and list
+the per-scale section, every claim's verdict at every scale (:func:`render_by_scale`), the
+preparation section, the rules), write it (:func:`write_report`), and list
 every file it reads (:func:`inputs`, which the Makefile's report target mirrors).
 
 A claim whose figure JSON is missing is reported as "not measured": the report never fails
@@ -12,7 +13,7 @@ import json
 from pathlib import Path
 
 from .claims import CLAIMS, RULES
-from .judging import MISSING, Claim
+from .judging import AGREES, MISSING, Claim
 from .scales import render_scales, scale_dirs
 from .studies import CITES, STUDIES, load_studies, render_preparation
 
@@ -30,27 +31,40 @@ def _figure_stem(figs: dict, prefix: str) -> str | None:
     return hits[0] if hits else None
 
 
-def render(figs: dict[str, dict], claims: list[Claim], scales: list[str] | None = None,
-           studies: dict | None = None) -> str:
-    """The Markdown report for the loaded figure documents (``scales``: lines of
-    :func:`render_scales`, appended; ``studies``: :func:`load_studies`, which the notes of the
-    claims in ``CITES`` cite)."""
-    rows, notes = [], []
-    any_doc = next(iter(figs.values()), {})
+def source(doc: dict) -> str:
+    """Where a figure's numbers come from: 'preset, N runs of M grains, history'."""
+    label = (doc.get("history") or {}).get("label")
+    return (f"{doc.get('preset')}, {doc.get('n_runs')} runs of {doc.get('n_grains')} grains"
+            + (f", {label}" if label else ""))
+
+
+def judge_all(figs: dict[str, dict], claims: list[Claim],
+              studies: dict | None = None) -> list[tuple[Claim, str, str, str, str]]:
+    """(claim, ours, verdict, note, source) of every claim on the loaded figure documents; a
+    claim whose figure is missing is "not measured". The judges see the piles' history and the
+    number of grains beside the numbers (a note may depend on them)."""
+    out = []
     for c in claims:
         stem = _figure_stem(figs, c.figure)
         if stem is None:
-            ours, verdict, note = "n/a", MISSING, f"no {c.figure}_*.json in the figures directory"
-            src = "n/a"
-        else:
-            doc = figs[stem]
-            # the judges see the piles' history beside the numbers (a note may depend on it)
-            ours, verdict, note = c.judge({**doc.get("numbers", {}), "history": doc.get("history")})
-            cite = CITES[c.key](studies) if studies and c.key in CITES else ""
-            note = " ".join(x for x in (note, cite) if x)
-            label = (doc.get("history") or {}).get("label")
-            src = (f"{doc.get('preset')}, {doc.get('n_runs')} runs of {doc.get('n_grains')} grains"
-                   + (f", {label}" if label else ""))
+            out.append((c, "n/a", MISSING, f"no {c.figure}_*.json in the figures directory", "n/a"))
+            continue
+        doc = figs[stem]
+        ours, verdict, note = c.judge({**doc.get("numbers", {}), "history": doc.get("history"),
+                                       "n_grains": doc.get("n_grains")})
+        cite = CITES[c.key](studies) if studies and c.key in CITES else ""
+        out.append((c, ours, verdict, " ".join(x for x in (note, cite) if x), source(doc)))
+    return out
+
+
+def render(figs: dict[str, dict], claims: list[Claim], scales: list[str] | None = None,
+           studies: dict | None = None) -> str:
+    """The Markdown report for the loaded figure documents (``scales``: lines of
+    :func:`render_scales` and the other sections, appended; ``studies``: :func:`load_studies`,
+    which the notes of the claims in ``CITES`` cite)."""
+    rows, notes = [], []
+    any_doc = next(iter(figs.values()), {})
+    for c, ours, verdict, note, src in judge_all(figs, claims, studies):
         rows.append(f"| {c.text} | {c.paper} | {ours} | {src} | **{verdict}** |")
         if note:
             notes.append(f"- **{c.text}** ({verdict}): {note}")
@@ -76,14 +90,67 @@ def render(figs: dict[str, dict], claims: list[Claim], scales: list[str] | None 
     return "\n".join(head + rows + tail + extra + rules) + "\n"
 
 
+# the scales whose verdicts are set side by side (smoke, the test scale, is left out)
+COMPARED = ("default", "default-fresh", "paper", "paper-fresh")
+
+
+def _piles(doc: dict) -> str:
+    label = (doc.get("history") or {}).get("label")
+    return f"{doc.get('n_grains')} x {doc.get('n_runs')}" + (f", {label}" if label else "")
+
+
+def render_by_scale(figures_dir, claims: list[Claim]) -> list[str]:
+    """Markdown lines: every claim's verdict on the figures of each scale of ``COMPARED`` (a
+    column "not yet run" where the scale has no figure JSON), then, for every claim whose verdict
+    is not the same at all the scales run, what each scale measured and, where it does not agree,
+    why (its judge's note, without the studies the main notes cite). Empty when fewer than two
+    scales have been run."""
+    dirs = scale_dirs(figures_dir)
+    judged = {}
+    for name in COMPARED:
+        figs = load_figures(dirs[name])
+        if figs:
+            judged[name] = (next(iter(figs.values())), judge_all(figs, claims))
+    if len(judged) < 2:
+        return []
+    lines = ["", "## Each claim at every scale", "",
+             "The same rules on the figures of each scale (`make figures PRESET=...`: `figures/` for "
+             "default, `figures/<scale>/` for the others, each with its own report and notes); "
+             "piles: grains x runs, history.", "",
+             "| claim | " + " | ".join(COMPARED) + " |", "|---" * (len(COMPARED) + 1) + "|",
+             "| piles | " + " | ".join(_piles(judged[s][0]) if s in judged else "not yet run"
+                                      for s in COMPARED) + " |"]
+    changed = []
+    for i, c in enumerate(claims):
+        cells = {s: judged[s][1][i] for s in judged}
+        lines.append(f"| {c.text} | " + " | ".join(cells[s][2] if s in cells else "not yet run"
+                                                  for s in COMPARED) + " |")
+        if len({v[2] for v in cells.values()}) > 1:
+            changed.append((c, cells))
+    lines += ["", "### What changes with scale and history", ""]
+    if not changed:
+        lines.append("Every claim has the same verdict at every scale run.")
+    for c, cells in changed:
+        said = "; ".join(f"{s} ({_piles(judged[s][0])}): {v[2]}, {v[1]}" for s, v in cells.items())
+        notes: dict[str, list[str]] = {}          # a note shared by several scales is said once
+        for s, v in cells.items():
+            if v[2] != AGREES and v[3]:
+                notes.setdefault(v[3], []).append(s)
+        why = " ".join(f"At {' and '.join(where)}: {note}" for note, where in notes.items())
+        lines.append(f"- **{c.text}**. {said}." + (f" {why}" if why else ""))
+    return lines
+
+
 def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
     """Render the report for ``figures_dir`` into ``out`` (temporary file, then rename)."""
     figs = load_figures(figures_dir)
     if not figs:
         raise FileNotFoundError(f"no fig*.json in {figures_dir}: run the figure notebooks first")
-    text = render(figs, CLAIMS if claims is None else claims,
-                  render_scales(figures_dir) + render_preparation(figures_dir),
-                  load_studies(figures_dir))
+    claims = CLAIMS if claims is None else claims
+    studies = load_studies(figures_dir)
+    text = render(figs, claims,
+                  render_scales(figures_dir) + render_by_scale(figures_dir, claims)
+                  + render_preparation(figures_dir), studies)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.tmp")
@@ -93,14 +160,17 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
 
 
 def inputs(figures_dir) -> list[Path]:
-    """Every file the report of ``figures_dir`` reads that exists: its ``fig*.json``, Fig. 2's JSON
-    of every scale (:func:`render_scales`), its ``preparation.json`` (:func:`render_preparation`)
-    and the default scale's studies (:func:`load_studies`). The Makefile's report target lists the
-    same files (tests/workflow/test_build_graph.py checks it)."""
+    """Every file the report of ``figures_dir`` reads that exists: its ``fig*.json``, the
+    Fig. 2's JSON of every scale (:func:`render_scales`), every ``fig*.json`` of the scales
+    :func:`render_by_scale` compares, its ``preparation.json`` (:func:`render_preparation`) and the
+    default scale's studies (:func:`load_studies`). The Makefile's report target lists the same
+    files (tests/workflow/test_build_graph.py checks it)."""
     d = Path(figures_dir)
     root = scale_dirs(d)["default"]
     found = sorted(d.glob("fig*.json"))
-    found += [s / "fig2_avalanche_criterion.json" for s in scale_dirs(d).values()]
+    for name, s in scale_dirs(d).items():
+        found += (sorted(s.glob("fig*.json")) if name in COMPARED
+                  else [s / "fig2_avalanche_criterion.json"])
     found += [d / "preparation.json"] + [root / f for f in STUDIES.values()]
     out = []
     for p in found:

@@ -31,20 +31,28 @@ def _gap_text(b: dict) -> str:
     return f"{'yes' if between and ratio < 1.0 else 'no'} ({_f(ratio, '.2f')}, {where})"
 
 
+def _per_run_angles(n: dict, name: str) -> str:
+    """'k of m runs: a, b, ...; tilt ends e' of fig2's theta_<name>_per_run (the runs with none
+    before the end of their tilt counted, not listed; more than 8 angles: their range)."""
+    per = [_num(v) for v in (n.get(f"theta_{name}_per_run") or [])]
+    fin = sorted(v for v in per if math.isfinite(v))
+    if len(fin) > 8:
+        listed = f": {_f(fin[0], '.1f')}-{_f(fin[-1], '.1f')}, median {_f(fin[len(fin) // 2], '.1f')}"
+    else:
+        listed = f": {', '.join(_f(v, '.1f') for v in fin)}" if fin else ""
+    return f"{len(fin)} of {len(per)} runs{listed}; tilt ends {_f(_num(n.get('theta_end_min')), '.0f')}"
+
+
 def _scale_rows(n2: dict, doc: dict | None) -> dict[str, str]:
     if doc is None:
         return {}
     n = doc.get("numbers", {})
     b = n.get("lost_bimodality") or {}
-    per = [_num(v) for v in (n.get("theta_slide_per_run") or [])]
-    k = sum(math.isfinite(v) for v in per)
-    fin = sorted(v for v in per if math.isfinite(v))
     return {
         "grains x runs": f"{doc.get('n_grains')} x {doc.get('n_runs')}",
         "first 2% onset (deg)": _ci(n, "theta_m", ".1f", "theta_m_mean"),
-        "first large slide (deg)": (f"{k} of {len(per)} runs" + (f": {', '.join(_f(v, '.1f') for v in fin)}"
-                                                                if fin else "")
-                                    + f"; tilt ends {_f(_num(n.get('theta_end_min')), '.0f')}"),
+        "first sustained flow (deg)": _per_run_angles(n, "slide"),
+        "avalanche angle: first large slide (deg)": _per_run_angles(n, "avalanche"),
         "KE threshold (per grain)": _f(_num(n.get("ke_threshold")), ".1e"),
         "frames losing no contact": _f(_num(n.get("lost_zero_fraction")), ".0%"),
         "Ashman D / valley depth": f"{_f(_num(b.get('ashman_d')), '.1f')} / {_f(_num(b.get('valley_depth')), '.2f')}",
@@ -82,7 +90,10 @@ def render_scales(figures_dir) -> list[str]:
         return []
     lines = ["", "## The same numbers at every scale", "",
              "From `fig2_avalanche_criterion.json` of each preset (`make figures PRESET=...`); "
-             "brackets: 95% bootstrap interval over runs.", "",
+             "brackets: 95% bootstrap interval over runs. The first sustained flow: kinetic energy "
+             "per grain above the Fig. 2a threshold (the KE threshold row) over >= 0.5 deg of tilt; "
+             "the avalanche angle: the same above fig2's fixed avalanche_ke (1e-3 unless given).",
+             "",
              "| | " + " | ".join(cols) + " |", "|---" * (len(cols) + 1) + "|"]
     for k in keys:
         lines.append(f"| {k} | " + " | ".join(
