@@ -299,3 +299,19 @@ def test_repose_angles_come_from_the_ensembles_repose_json(tiny, tmp_path):
     (d / preparation.REPOSE_FILE).write_text(json.dumps(doc))
     with pytest.raises(ValueError, match="seeds"):
         preparation.repose_numbers(ens[0])
+
+
+def test_records_alone_are_refused_naming_what_the_study_needs(tmp_path):
+    """The study reads the piles' first frames (packing, fabric), which records do not keep."""
+    from tiltpile.figures.preparation import check_inputs
+
+    rec, empty = tmp_path / "records", tmp_path / "empty"
+    rec.mkdir()
+    empty.mkdir()
+    (rec / "run_0000.npz").write_bytes(b"")
+    with pytest.raises(ValueError) as e:
+        check_inputs([rec, empty])
+    msg = str(e.value)
+    assert f"{rec} holds no run_*.h5 files (it holds records run_*.npz" in msg
+    assert f"{empty} holds no run_*.h5 files (run `tiltpile ensemble` first)" in msg
+

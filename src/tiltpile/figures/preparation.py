@@ -123,7 +123,10 @@ def check_inputs(data_dirs, labels=None) -> list[str]:
         if not d.is_dir():
             problems.append(f"{d} is not a directory")
         elif not run_files(d):
-            problems.append(f"{d} holds no run_*.h5 files (run `tiltpile ensemble` first)")
+            why = ("it holds records run_*.npz, which keep no frame's positions: give the "
+                   "directory of their run files" if any(d.glob("run_*.npz"))
+                   else "run `tiltpile ensemble` first")
+            problems.append(f"{d} holds no run_*.h5 files ({why})")
     if labels and len(labels) != len(dirs):
         problems.append(f"{len(labels)} labels for {len(dirs)} ensemble directories: give one "
                         "label per directory, or none to name them by their preparation")
