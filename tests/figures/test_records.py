@@ -185,7 +185,7 @@ def test_notebooks_run_from_records(records_only, both, tmp_path):
 
 
 @pytest.mark.slow
-def test_record_command_is_idempotent(smoke_ensemble, tmp_path, capsys):
+def test_record_command_is_idempotent(smoke_ensemble, tmp_path, capsys, monkeypatch):
     out = tmp_path / "records"
     assert _cli("record", smoke_ensemble, "--out", out, "--workers", 1, "--quiet") == 0
     assert capsys.readouterr().out.count(" written ") == 3
@@ -204,6 +204,17 @@ def test_record_command_is_idempotent(smoke_ensemble, tmp_path, capsys):
     text = capsys.readouterr().out
     assert "run_0002.npz  written" in text and text.count(" up to date ") == 2
     assert (out / "run_0002.npz").read_bytes() == before["run_0002.npz"][0]
+    # a record above the budget of a committed record is written, with a warning naming it
+    import tiltpile.cli.record as cli_record
+
+    budget = len(before["run_0002.npz"][0]) - 1
+    monkeypatch.setattr(cli_record, "RECORD_BUDGET_BYTES", budget)
+    assert _cli("record", smoke_ensemble, "--out", out, "--quiet") == 0
+    warned = [line for line in capsys.readouterr().err.splitlines()
+              if "a committed record may weigh" in line]
+    over = [n for n, (data, _) in sorted(before.items()) if len(data) > budget]
+    assert "run_0002.npz" in over
+    assert [line.split("warning: ")[1].split(" is ")[0] for line in warned] == [str(out / n) for n in over]
 
 
 @pytest.mark.slow

@@ -9,6 +9,9 @@ from pathlib import Path
 
 from tiltpile.cli._common import ConfigError, ensemble_files
 
+# what a committed record may weigh: the paper's 50 runs in 100 MB (docs/run-file.md)
+RECORD_BUDGET_BYTES = 2_000_000
+
 
 def add_parser(sub) -> None:
     p = sub.add_parser("record", help="write the records of an ensemble's finished runs (what the "
@@ -25,7 +28,8 @@ def add_parser(sub) -> None:
 
 def run(args) -> int:
     """Validate everything, then write the missing and stale records and print one line per run
-    file (record, written / up to date, size). Refused before anything is written: DIR without
+    file (record, written / up to date, size), with a warning on stderr for a record above
+    ``RECORD_BUDGET_BYTES``. Refused before anything is written: DIR without
     run files or mixing configurations (or another than its ``ensemble.json``), --out that is DIR
     itself or its observables cache or cannot be written, --out holding records of another
     configuration."""
@@ -57,6 +61,10 @@ def run(args) -> int:
         return 1
     for rec, status, size in zip(table["record"], table["status"], table["bytes"]):
         print(f"{rec}  {status}  {size / 1e6:.2f} MB")
+        if size > RECORD_BUDGET_BYTES:
+            print(f"tiltpile record: warning: {rec} is {size / 1e6:.2f} MB, above the "
+                  f"{RECORD_BUDGET_BYTES / 1e6:g} MB a committed record may weigh (docs/run-file.md)",
+                  file=sys.stderr)
     written = int((table["status"] == "written").sum())
     print(f"{len(table)} records in {out}: {written} written, {len(table) - written} up to date, "
           f"{table['bytes'].sum() / 1e6:.2f} MB")
