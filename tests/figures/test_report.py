@@ -303,3 +303,13 @@ def test_the_report_reads_every_figure_of_the_compared_scales(tmp_path):
             "paper/fig5_cluster_sizes.json", "smoke/fig2_avalanche_criterion.json"} <= read
     assert "smoke/fig5_cluster_sizes.json" not in read      # smoke is compared by Fig. 2 only
 
+
+
+def test_the_scale_table_gives_many_angles_as_a_range_and_their_median(tmp_path):
+    """With more than eight runs sliding, the per-scale table gives the range and the median (of
+    an even count: the mean of the middle two), not every angle."""
+    angles = [20.0 + 0.25 * k for k in range(10)] + [None]
+    _write(tmp_path, [_fig2(theta_avalanche_per_run=angles)])
+    text = report.write_report(tmp_path, tmp_path / "R.md").read_text()
+    row = _row(text, "avalanche angle: first large slide (deg)")
+    assert "10 of 11 runs: 20.0-22.2, median 21.1; tilt ends 22" in row

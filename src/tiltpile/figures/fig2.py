@@ -25,8 +25,8 @@ above the panel-a threshold over at least ``slide_sustain_deg`` of tilt
 (:func:`tiltpile.analysis.first_slide`); and the avalanche angle, the same with a fixed threshold
 ``avalanche_ke`` (1e-3 m g d per grain: the large slide of ``tiltpile repose`` and the paper
 preset's ``protocol.end_ke``), the angle Deboeuf et al. (2005) call theta_a. With 1000 grains the
-panel-a threshold is of the same order (4e-4 to 2e-3) and the two coincide where both are seen;
-with 4000 grains it falls to a few 1e-6, below a slow flow of 1e-5 to 1e-3 per grain that comes
+panel-a threshold is of the same order (4e-4 to 1.6e-3) and the two coincide where both are seen;
+with 4000 grains it falls to a few 1e-6, below a slow flow of 1e-5 to 6e-4 per grain that comes
 some 3 deg before the slide (docs/figures.md).
 
 Kinetic-energy threshold (paper: "the value above which the distribution escapes the power law
@@ -148,6 +148,8 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
                                    some run (:func:`tiltpile.analysis.frame_spacing_check`)
       sample_seed
     """
+    if not avalanche_ke > 0.0:
+        raise ValueError(f"avalanche_ke must be > 0 (m g d per grain), got {avalanche_ke}")
     p = analysis_params(ens)
     cutoff = float(p["cutoff"])
     f = ens.frames.sort_values(["run", "frame"], kind="stable")
@@ -158,8 +160,6 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
     slide_ke = p["slide_ke"] if p["slide_ke"] is not None else dep["threshold"]
     th, onset_numbers = _first_onsets(f, ens.seeds, confidence)
     sl, slide_numbers = _first_slides(f, ens.seeds, th, slide_ke, sustain, confidence)
-    if not avalanche_ke > 0.0:
-        raise ValueError(f"avalanche_ke must be > 0 (m g d per grain), got {avalanche_ke}")
     aa, avalanche_numbers = _first_slides(f, ens.seeds, th, avalanche_ke, sustain, confidence,
                                           "avalanche")
     lost_numbers, lost_data = _lost_fraction(f, cutoff, lost_bins_per_decade)         # (b)

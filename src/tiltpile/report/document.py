@@ -31,11 +31,15 @@ def _figure_stem(figs: dict, prefix: str) -> str | None:
     return hits[0] if hits else None
 
 
+def _history(doc: dict) -> str:
+    """', <history label>' of a figure document ('' without one)."""
+    label = (doc.get("history") or {}).get("label")
+    return f", {label}" if label else ""
+
+
 def source(doc: dict) -> str:
     """Where a figure's numbers come from: 'preset, N runs of M grains, history'."""
-    label = (doc.get("history") or {}).get("label")
-    return (f"{doc.get('preset')}, {doc.get('n_runs')} runs of {doc.get('n_grains')} grains"
-            + (f", {label}" if label else ""))
+    return f"{doc.get('preset')}, {doc.get('n_runs')} runs of {doc.get('n_grains')} grains" + _history(doc)
 
 
 def judge_all(figs: dict[str, dict], claims: list[Claim],
@@ -95,8 +99,7 @@ COMPARED = ("default", "default-fresh", "paper", "paper-fresh")
 
 
 def _piles(doc: dict) -> str:
-    label = (doc.get("history") or {}).get("label")
-    return f"{doc.get('n_grains')} x {doc.get('n_runs')}" + (f", {label}" if label else "")
+    return f"{doc.get('n_grains')} x {doc.get('n_runs')}" + _history(doc)
 
 
 def render_by_scale(figures_dir, claims: list[Claim]) -> list[str]:

@@ -146,11 +146,11 @@ def _cutoff_in_gap(n: dict):
 
 def _contacts_at_cutoff(n: dict) -> str:
     """'N grains the 2% cutoff is ~k contacts' (k from the mean active contacts of a frame, fig2's
-    n_active_mean; the grains alone where it is missing)."""
-    grains, active = n.get("n_grains"), _num(n.get("n_active_mean"))
-    head = f"{grains} grains the {_f(_num(n.get('cutoff')), '.0%')} cutoff"
-    return (f"{head} is ~{_f(_num(n.get('cutoff')) * active, '.0f')} contacts"
-            if math.isfinite(active) else f"{head} is a few dozen contacts")
+    n_active_mean; without it, the cutoff as a share of the contacts)."""
+    cutoff, active = _num(n.get("cutoff")), _num(n.get("n_active_mean"))
+    head = f"{n.get('n_grains')} grains the {_f(cutoff, '.0%')} cutoff"
+    return (f"{head} is ~{_f(cutoff * active, '.0f')} contacts" if math.isfinite(active)
+            else f"{head} is that share of the active contacts")
 
 
 def _orientation(n: dict):

@@ -6,6 +6,7 @@ from __future__ import annotations
 
 import json
 import math
+import statistics
 from pathlib import Path
 
 from .judging import _ci, _f, _num
@@ -37,7 +38,7 @@ def _per_run_angles(n: dict, name: str) -> str:
     per = [_num(v) for v in (n.get(f"theta_{name}_per_run") or [])]
     fin = sorted(v for v in per if math.isfinite(v))
     if len(fin) > 8:
-        listed = f": {_f(fin[0], '.1f')}-{_f(fin[-1], '.1f')}, median {_f(fin[len(fin) // 2], '.1f')}"
+        listed = f": {_f(fin[0], '.1f')}-{_f(fin[-1], '.1f')}, median {_f(statistics.median(fin), '.1f')}"
     else:
         listed = f": {', '.join(_f(v, '.1f') for v in fin)}" if fin else ""
     return f"{len(fin)} of {len(per)} runs{listed}; tilt ends {_f(_num(n.get('theta_end_min')), '.0f')}"
