@@ -120,6 +120,29 @@ def test_onset_claims_compare_like_with_like(tmp_path):
     assert v["robust"] == "disagrees"
 
 
+def _note(text: str, key: str) -> str:
+    claim = next(c.text for c in report.CLAIMS if c.key == key)
+    return next(line for line in text.splitlines() if line.startswith(f"- **{claim}**"))
+
+
+def test_onset_and_slide_notes_give_their_own_numbers(tmp_path):
+    """The first-onset note quotes the kinetic energy of each scale's own first onsets (not the
+    1000-grain range), the slide note says on which side of 21 deg the median misses, and runs
+    that end at different angles are not said to share the end of their tilt."""
+    _, text = _verdicts(tmp_path, [_fig2(ke_first_onset_per_run=[2e-5, None, 7e-9, 1.2e-4],
+                                         theta_avalanche_per_run=[17.45, 18.3, 20.65, 19.0])])
+    assert "(kinetic energy per grain 7e-09 to 1e-04 at the first onsets)" in _note(text, "theta_m")
+    assert "1e-5 to 5e-4" not in text
+    assert "(18.6 deg) is more than 2 deg below" in _note(text, "theta_slide")
+    row = _row(text, next(c.text for c in report.CLAIMS if c.key == "theta_slide"))
+    assert "4 of 4 runs slide before the end of their tilt (the earliest end: 22.0 deg)" in row
+    # a JSON written before fig2 kept the energies: the note says nothing of them
+    _, text = _verdicts(tmp_path, [_fig2()])
+    assert "precursor rearrangements; the large slide" in _note(text, "theta_m")
+    _, text = _verdicts(tmp_path, [_fig2(theta_avalanche_per_run=[23.5, 23.1, 24.0, None])])
+    assert "(23.8 deg) is more than 2 deg above" in _note(text, "theta_slide")
+
+
 def test_fig6_minimum_below_the_single_grain_bound_disagrees(tmp_path):
     six = {"classes": {"1": {"dz_min": -2.5, "dz_mean": -1.0}}, "frac_below_single_grain": 0.001,
            "largest_bin": {"size_lo": 40, "dz_min": -0.39, "dz_mean": -0.18},
@@ -312,4 +335,4 @@ def test_the_scale_table_gives_many_angles_as_a_range_and_their_median(tmp_path)
     _write(tmp_path, [_fig2(theta_avalanche_per_run=angles)])
     text = report.write_report(tmp_path, tmp_path / "R.md").read_text()
     row = _row(text, "avalanche angle: first large slide (deg)")
-    assert "10 of 11 runs: 20.0-22.2, median 21.1; tilt ends 22" in row
+    assert "10 of 11 runs: 20.0-22.2, median 21.1; tilts end >= 22" in row

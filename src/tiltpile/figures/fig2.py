@@ -129,6 +129,9 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
                                    fraction of avalanching / quiet frames with KE above the
                                    threshold (how well the KE criterion agrees with the
                                    lost-contact one)
+      ke_first_onset_per_run       KE per grain (ke_column) of each run's first onset frame, in
+                                   theta_m_per_run's order (null without onset): how much the
+                                   pile moves when the 2% criterion first fires
       lost_zero_fraction           frames that lose no contact (drawn apart in panel b)
       n_active_mean                mean number of active contacts of a frame (the cutoff's scale)
       lost_bins_per_decade         the bins of panel b (Freedman-Diaconis unless given)
@@ -168,6 +171,7 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
                "avalanching_fraction": float(av.mean()) if av.size else np.nan,
                **_quiet_network(f, av, ens.seeds, confidence),
                **_ke_numbers(f, av, dep, ke_column),
+               "ke_first_onset_per_run": _ke_at_first_onsets(f, ens.seeds, ke_column),
                **lost_numbers,
                **_robustness(f, cutoff, robustness_cutoffs, max_shift, p["merge_gap"]),
                "sample_seed": seed}
@@ -249,6 +253,14 @@ def _ke_numbers(f: pd.DataFrame, av: np.ndarray, dep: dict, ke_column: str) -> d
                 if (av & ok).any() and np.isfinite(thr) else np.nan,
                 ke_threshold_quiet_above=float(above[~av & ok].mean())
                 if (~av & ok).any() and np.isfinite(thr) else np.nan)
+
+
+def _ke_at_first_onsets(f: pd.DataFrame, seeds, ke_column: str) -> np.ndarray:
+    """KE per grain (``ke_column``) of each run's first onset frame, in ``seeds`` order (NaN for a
+    run without onset; the frame is the one :func:`tiltpile.analysis.first_onsets` takes)."""
+    on = f[f["onset"].astype(bool)].sort_values(["run", "frame"], kind="stable")
+    first = on.groupby("run")[ke_column].first()
+    return np.array([float(first.get(s, np.nan)) for s in seeds])
 
 
 def _lost_fraction(f: pd.DataFrame, cutoff: float,

@@ -25,10 +25,20 @@ def _theta_m(n: dict):
     note = "" if ok or not math.isfinite(mx) else (
         "no run stays quiet up to 14.4 deg: the paper's Fig. 5 has quiet frames 14.4 deg before an "
         "onset, so some of its piles had no 2% event before 14.4 deg; ours all have one by "
-        f"{_f(mx, '.1f')} deg. These first onsets are precursor rearrangements of the top layers "
-        "(kinetic energy per grain 1e-5 to 5e-4); the large slide comes later (next claim). "
+        f"{_f(mx, '.1f')} deg. These first onsets are precursor rearrangements"
+        f"{_ke_range(n.get('ke_first_onset_per_run'))}; the large slide comes later (next claim). "
         + why).strip()
     return ours, _verdict(ok, math.isfinite(mx)), note
+
+
+def _ke_range(per_run) -> str:
+    """' (kinetic energy per grain a to b at the first onsets)' from fig2's
+    ke_first_onset_per_run, or '' where fig2 did not write it."""
+    ke = sorted(v for v in (_num(x) for x in (per_run or [])) if math.isfinite(v) and v > 0)
+    if not ke:
+        return ""
+    span = _f(ke[0], ".0e") if len(ke) == 1 else f"{_f(ke[0], '.0e')} to {_f(ke[-1], '.0e')}"
+    return f" (kinetic energy per grain {span} at the first onsets)"
 
 
 def _theta_slide(n: dict):
@@ -51,8 +61,8 @@ def _theta_slide(n: dict):
         med_txt = f"> {_f(end, '.1f')}" if m else "n/a"
         measurable = m > 0 and end > 23.0        # a median beyond 23 deg is known to disagree
         ok = False
-    ours = (f"first large slide: median {med_txt} deg; {k} of {m} runs slide before the tilt "
-            f"ends ({_f(end, '.1f')} deg)" + (f", at {', '.join(_f(v, '.2f') for v in fin)} deg"
+    ours = (f"first large slide: median {med_txt} deg; {k} of {m} runs slide before the end of "
+            f"their tilt (the earliest end: {_f(end, '.1f')} deg)" + (f", at {', '.join(_f(v, '.2f') for v in fin)} deg"
                                                if fin else "")
             + f" (KE per grain > {_f(_num(n.get('avalanche_ke')), '.0e')} over "
             f">= {_f(_num(n.get('slide_sustain_deg')), 'g')} deg)")
@@ -63,7 +73,8 @@ def _theta_slide(n: dict):
                 "decide it; the per-scale table shows how it changes with the number of grains, "
                 "and `tiltpile repose` (the preparation study) tilts the runs on into their slides.")
     elif not ok:
-        note = "our median first large slide is more than 2 deg from the literature's ~21 deg."
+        note = (f"our median first large slide ({med_txt} deg) is more than 2 deg "
+                f"{'below' if med < 21.0 else 'above'} the literature's ~21 deg.")
     return ours, _verdict(ok, measurable), note
 
 

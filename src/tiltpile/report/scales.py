@@ -33,7 +33,7 @@ def _gap_text(b: dict) -> str:
 
 
 def _per_run_angles(n: dict, name: str) -> str:
-    """'k of m runs: a, b, ...; tilt ends e' of fig2's theta_<name>_per_run (the runs with none
+    """'k of m runs: a, b, ...; tilts end >= e' of fig2's theta_<name>_per_run (the runs with none
     before the end of their tilt counted, not listed; more than 8 angles: their range)."""
     per = [_num(v) for v in (n.get(f"theta_{name}_per_run") or [])]
     fin = sorted(v for v in per if math.isfinite(v))
@@ -41,7 +41,7 @@ def _per_run_angles(n: dict, name: str) -> str:
         listed = f": {_f(fin[0], '.1f')}-{_f(fin[-1], '.1f')}, median {_f(statistics.median(fin), '.1f')}"
     else:
         listed = f": {', '.join(_f(v, '.1f') for v in fin)}" if fin else ""
-    return f"{len(fin)} of {len(per)} runs{listed}; tilt ends {_f(_num(n.get('theta_end_min')), '.0f')}"
+    return f"{len(fin)} of {len(per)} runs{listed}; tilts end >= {_f(_num(n.get('theta_end_min')), '.0f')}"
 
 
 def _scale_rows(n2: dict, doc: dict | None) -> dict[str, str]:
