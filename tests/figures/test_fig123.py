@@ -352,6 +352,27 @@ def test_snapshot_layers_categories_and_segments():
     assert geo["category"][0] == snapshot.CLUSTER and geo["category"][2] == snapshot.FAIL_OUTSIDE
 
 
+@pytest.mark.parametrize("box_length, height", [(40.0, 30.0), (120.0, 35.0)])
+def test_the_tilt_label_stays_beside_the_box(box_length, height):
+    """The pile picture's tilt label sits right of the box wall and inside the figure, for the
+    1000-grain pile and for the long flat 4000-grain one (whose label used to cover the pile's
+    right edge), at the width Fig. 3 gives the picture."""
+    xs, ys = np.meshgrid(np.arange(0.5, box_length, 1.0), np.arange(0.5, height, 1.0))
+    lay = {"position": np.column_stack([xs.ravel(), ys.ravel()]),
+           "radius": np.full(xs.size, 0.5), "category": np.zeros(xs.size, dtype=np.int8),
+           "segments": np.zeros((0, 2, 2)), "theta_deg": 24.4, "box_length": box_length}
+    ew, eh = snapshot.snapshot_extent(lay)
+    fig = plt.figure(figsize=(3.4, 0.82 * 3.4 * eh / ew + 0.3))
+    ax = fig.add_axes([0.15, 0.02, 0.82, 0.82 * 3.4 * eh / ew / (0.82 * 3.4 * eh / ew + 0.3)])
+    snapshot.draw_snapshot(ax, lay, legend=False)
+    fig.canvas.draw()
+    label = next(t for t in ax.texts if "theta" in t.get_text())
+    box = label.get_window_extent(fig.canvas.get_renderer())
+    wall = ax.transData.transform((box_length, 0.0))[0]
+    assert box.x0 > wall and box.x1 <= fig.bbox.x1
+    plt.close(fig)
+
+
 def test_the_avalanche_angle_is_the_large_slide_of_repose():
     """One definition of the large slide in the package: fig2's avalanche angle, the slide of
     ``tiltpile repose`` and the paper preset's end of run share the threshold."""

@@ -249,13 +249,15 @@ def plot(data: dict, numbers: dict):
     """(a) one run against theta; (b) ensemble windows against theta - theta_m; (c) clusters."""
     lay = data["snapshot"]
     if lay is not None:
-        ew, eh = snapshot_extent({"position": lay["position"], "radius": lay["radius"],
-                                  "box_length": lay["box_length"]})
+        # the box alone: panel c draws no gravity arrow, so no margin for one
+        ew = float(lay["box_length"])
+        eh = snapshot_extent({"position": lay["position"], "radius": lay["radius"],
+                              "box_length": ew})[1]
     else:
         ew, eh = 2.0, 1.0
     left, right = 0.16, 0.86
     h_c = (right - left) * style.SINGLE_COLUMN_IN * eh / ew
-    height, gkw = style.stacked_layout([1.5, 1.5, h_c], [0.45, 0.45], top_in=0.12,
+    height, gkw = style.stacked_layout([1.5, 1.5, h_c], [0.45, 0.6], top_in=0.36,
                                        bottom_in=0.05, left=left, right=right)
     fig, (ax, bx, cx) = style.figure(3, 1, height=height, gridspec_kw=gkw)
 
@@ -275,8 +277,10 @@ def plot(data: dict, numbers: dict):
         ax.axvline(t, color=style.COLORS["marginal"], lw=0.5, ls=":", zorder=0)
     ax.plot([], [], color=style.COLORS["marginal"], lw=0.5, ls=":", label="onsets")
     ax.plot([], [], color=style.COLORS["avalanche"], lw=0.8, label="floppy modes / grain")
-    ax.legend(loc="lower left", fontsize=5.5, handlelength=1.5)
-    ax.set_title(f"run {data['seed']}", fontsize=6.5)
+    # above the panel: inside it, the legend would hide the twin axis's curve at any corner
+    ax.legend(loc="lower center", bbox_to_anchor=(0.5, 1.0), ncol=3, fontsize=5.5,
+              handlelength=1.5, columnspacing=1.0, frameon=False, title=f"run {data['seed']}",
+              title_fontsize=6.5)
     style.panel_label(ax, "a")
 
     path = data["path"]

@@ -149,11 +149,14 @@ def snapshot_extent(lay: dict) -> tuple[float, float]:
     y = lay["position"][:, 1]
     dmax = 2.0 * float(np.max(lay["radius"]))
     h = float(np.ptp(y)) + 2.0 * dmax
-    return lay["box_length"] + _gravity_margin(h), h
+    return lay["box_length"] + _gravity_margin(h, lay["box_length"]), h
 
 
-def _gravity_margin(h: float) -> float:
-    return 0.42 * h
+def _gravity_margin(h: float, box_length: float) -> float:
+    """Room right of the box for the gravity arrow and the tilt label: the arrow scales with the
+    pile's height, the label (fixed font size) with the picture's width, which a long flat pile
+    (4000 grains) sets."""
+    return max(0.42 * h, 0.2 * box_length)
 
 
 def draw_snapshot(ax, lay: dict | None, legend: bool = True) -> None:
@@ -174,7 +177,7 @@ def draw_snapshot(ax, lay: dict | None, legend: bool = True) -> None:
                                          linewidths=0.7, capstyle="round", zorder=3))
     y0, y1 = ax.get_ylim()
     h = y1 - y0
-    m = _gravity_margin(h)
+    m = _gravity_margin(h, L)
     ax.set_xlim(0.0, L + m)
     ax.plot([0, 0, L, L], [y1, 0, 0, y1], color=style.COLORS["fixed"], lw=0.6, zorder=0)
     for side in ("top", "right", "bottom", "left"):
@@ -189,8 +192,8 @@ def draw_snapshot(ax, lay: dict | None, legend: bool = True) -> None:
                                 shrinkA=0, shrinkB=0))
     ax.text(cx + 0.12 * m, cy - g[1] / 2, r"$\mathbf{g}$", color=style.COLORS["gravity"],
             ha="left", va="top")
-    ax.text(cx, cy + g[1] / 2 - 0.04 * h, rf"$\theta = {lay['theta_deg']:.1f}^\circ$",
-            ha="center", va="top", fontsize=6.5)
+    ax.text(L + 0.06 * m, cy + g[1] / 2 - 0.04 * h, rf"$\theta = {lay['theta_deg']:.1f}^\circ$",
+            ha="left", va="top", fontsize=6.5)
     if legend:
         def dot(c):
             return Line2D([], [], ls="none", marker="o", ms=4, mfc=c, mec="none")
