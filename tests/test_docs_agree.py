@@ -1,7 +1,8 @@
 """Facts the README and the docs both state, stated the same: the paper ensemble's cost and
 whether the 4000-grain pile flows before its large slide (the "Where things stand" of
 docs/performance.md summarizes the measurement log, docs/performance-log.md; the README and
-docs/slurm.md quote its current estimates)."""
+docs/slurm.md quote its current estimates); and the README's findings are the committed
+figures' numbers."""
 
 from pathlib import Path
 
@@ -41,3 +42,59 @@ def test_the_capped_pile_is_not_called_a_flow():
     readme = " ".join(README.split())
     assert "not flowing there" in now and "It is not flowing there" in readme
     assert "1e-5 to 5e-4" in now and "1e-5 to 5e-4" in readme
+
+
+# ------------------------------------------------------------------------------------------------
+# "What we found": the README's numbers are those of the committed figures and reports
+
+import json  # noqa: E402
+import statistics  # noqa: E402
+
+FOUND = " ".join(_section(README, "## What we found").split())
+SCALES = {"default": (ROOT / "figures", ROOT / "paper" / "REPRODUCTION.md"),
+          "default-fresh": (ROOT / "figures" / "default-fresh",
+                            ROOT / "figures" / "default-fresh" / "REPRODUCTION.md"),
+          "paper-fresh": (ROOT / "figures" / "paper-fresh",
+                          ROOT / "figures" / "paper-fresh" / "REPRODUCTION.md")}
+
+
+def _numbers(scale: str, figure: str) -> dict:
+    return json.loads((SCALES[scale][0] / f"{figure}.json").read_text())["numbers"]
+
+
+def _paper_verdicts(scale: str) -> list[str]:
+    """The verdicts of the report's claims of the paper (not those beyond it)."""
+    text = SCALES[scale][1].read_text()
+    rows = text[text.index("| claim | paper | ours |"):].split("\n\n")[0].splitlines()[2:]
+    cells = [[c.strip() for c in r.strip("|").split("|")] for r in rows]
+    return [c[-1].strip("*") for c in cells if c[1] != "beyond the paper"]
+
+
+def _ci(n: dict, key: str, mean_key: str | None = None, fmt: str = ".1f") -> str:
+    mean = n[mean_key or key]
+    return f"{mean:{fmt}} [{n[key + '_ci_low']:{fmt}}, {n[key + '_ci_high']:{fmt}}]"
+
+
+def test_what_we_found_quotes_the_committed_figures():
+    """Each number "What we found" gives for a scale is the one its committed figures and report
+    give (regenerated figures that move a number fail here until the README says the new one)."""
+    for scale, agree in (("default", "12 of its 18 claims agree"),
+                         ("default-fresh", "agree with {} of the 18 claims"),
+                         ("paper-fresh", "{} of the 18 claims agree")):
+        verdicts = _paper_verdicts(scale)
+        assert len(verdicts) == 18, scale
+        quoted = agree.format(verdicts.count("agrees"))
+        assert quoted in FOUND, (scale, quoted)
+        first = _ci(_numbers(scale, "fig2_avalanche_criterion"), "theta_m", "theta_m_mean")
+        assert f"{first} deg" in FOUND, (scale, first)
+    default = _paper_verdicts("default")
+    assert (f"{default.count('disagrees')} do not and {default.count('inconclusive')} is open"
+            in FOUND)
+    n5 = _numbers("default", "fig5_cluster_sizes")
+    assert f"delta = {_ci(n5, 'delta_pooled', fmt='.2f')}" in FOUND
+    z = _numbers("default", "fig2_avalanche_criterion")["z_quiet_run_mean"]
+    assert f"<z> = {z:.3f} against ~3.5" in FOUND
+    slides = sorted(v for v in _numbers("paper-fresh", "fig2_avalanche_criterion")
+                    ["theta_avalanche_per_run"] if v is not None)
+    assert (f"median {statistics.median(slides):.1f} deg ({slides[0]:.2f}-{slides[-1]:.2f})"
+            in FOUND)
