@@ -236,7 +236,7 @@ clean-data:
 # (`tiltpile repose`, redone when a run file is newer); then notebooks/preparation.ipynb on them
 # (the first history is the reference, normally fresh piles) into
 # PREP_FIGURES/preparation.{png,pdf,json}. PREP_DIRS="dir ..." instead names existing ensembles
-# and runs nothing. NB="-p name value ..." with VARIANT=V passes analysis parameters to the
+# (run files, or their records alone: no frame-0 structure then) and runs nothing. NB="-p name value ..." with VARIANT=V passes analysis parameters to the
 # notebook, writing figures/V/ (PREP_FIGURES) instead. `make zcount` charts <z> by counting rule
 # on the same ensembles (`tiltpile zcount`, PREP_FIGURES/zcount.{png,json}). About 3.5 hours on two cores for the five
 # histories (a cycled run costs 2.6-6 times the sweeps of a fresh one).
@@ -256,7 +256,9 @@ PREP_GIVEN := $(PREP_DIRS)
 PREP_DIRS ?= $(foreach h,$(PREP_HISTORIES),$(PREP_ROOT)/$(h))
 PREP_LABELS ?=
 PREP_FIGURES ?= figures$(if $(strip $(VARIANT)),/$(VARIANT))
-PREP_EXECUTED := notebooks/executed/preparation$(if $(strip $(VARIANT)),-$(VARIANT))
+# one executed directory per output directory: a study into figures/paper does not retire the
+# default one's stamps
+PREP_EXECUTED := notebooks/executed/preparation$(subst /,-,$(patsubst figures%,%,$(PREP_FIGURES)))
 ifneq ($(strip $(SET)),)
 ifneq ($(filter preparation preparation-runs zcount,$(MAKECMDGOALS)),)
 $(error SET does not apply to the preparation study: its ensembles are set by PREP_SET_<history>)
@@ -289,8 +291,8 @@ endif
 # PREP_DIRS (name, size, time), rewritten only when one changes; and its notebook parameters.
 $(PREP_EXECUTED)/.inputs: FORCE | preparation-runs
 	@mkdir -p $(@D)
-	@for d in $(PREP_DIRS); do stat -L -c '%n %s %Y' $$d/run_*.h5 $$(ls $$d/repose.json 2> /dev/null) \
-	  2> /dev/null; done > $@.tmp; $(call update_if_changed,$@)
+	@for d in $(PREP_DIRS); do stat -L -c '%n %s %Y' $$d/run_*.h5 $$d/run_*.npz \
+	  $$(ls $$d/repose.json 2> /dev/null) 2> /dev/null; done > $@.tmp; $(call update_if_changed,$@)
 $(PREP_EXECUTED)/preparation.parameters.yaml: FORCE | $(STAMP) check-nb
 	@mkdir -p $(@D)
 	@$(PY) -m tiltpile.figures.parameters select notebooks/preparation.ipynb \

@@ -301,17 +301,47 @@ def test_repose_angles_come_from_the_ensembles_repose_json(tiny, tmp_path):
         preparation.repose_numbers(ens[0])
 
 
-def test_records_alone_are_refused_naming_what_the_study_needs(tmp_path):
-    """The study reads the piles' first frames (packing, fabric), which records do not keep."""
-    from tiltpile.figures.preparation import check_inputs
+def test_a_study_of_records_is_the_study_of_their_run_files(tiny, study, tmp_path):
+    """Ensembles given by their records (the paper scale's are committed so): the same labels,
+    histories and numbers as from the run files, except the frame-0 structure, which needs the
+    positions and is NaN; the JSON says which ensembles came from records, the report says what
+    they cannot give."""
+    from tiltpile.figures.records import write_records
+    from tiltpile.report.studies import render_preparation
 
-    rec, empty = tmp_path / "records", tmp_path / "empty"
-    rec.mkdir()
+    dirs = []
+    for name in ("fresh", "prep"):
+        write_records(tiny[name], tmp_path / name, workers=1, progress=False)
+        dirs.append(tmp_path / name)
+    assert not list((tmp_path / "fresh").glob("run_*.h5"))
+    _, labels0, hist0, numbers0, _ = study
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")
+        ens, labels, hist = preparation.load(dirs, [])
+        numbers, _ = preparation.compute(ens, labels, hist)
+    assert (labels, hist) == (labels0, hist0) and all(e.records for e in ens)
+
+    def without_structure(x, path=""):
+        if isinstance(x, dict):
+            return {k: without_structure(v, f"{path}.{k}") for k, v in x.items()
+                    if not k.startswith(preparation.STRUCTURE)}
+        return x
+
+    assert json.dumps(without_structure(numbers), sort_keys=True, default=str) == json.dumps(
+        without_structure(numbers0), sort_keys=True, default=str)
+    for lab in labels:
+        e = numbers["ensembles"][lab]
+        assert all(np.isnan(e["per_run"][c]).all() and np.isnan(e[f"{c}_mean"])
+                   for c in preparation.STRUCTURE)
+        assert np.isfinite(numbers0["ensembles"][lab]["phi_start_mean"])
+    meta = preparation.meta(ens, labels, hist)
+    assert [m["from_records"] for m in meta["ensembles"]] == [True, True]
+    (tmp_path / "preparation.json").write_text(json.dumps(
+        {"figure": "preparation", **meta, "numbers": numbers}, default=float))
+    text = "\n".join(render_preparation(tmp_path))
+    assert f"Read from their records (no run files): {labels[0]}, {labels[1]};" in text
+    # a directory with neither is refused, saying what it lacks
+    empty = tmp_path / "empty"
     empty.mkdir()
-    (rec / "run_0000.npz").write_bytes(b"")
-    with pytest.raises(ValueError) as e:
-        check_inputs([rec, empty])
-    msg = str(e.value)
-    assert f"{rec} holds no run_*.h5 files (it holds records run_*.npz" in msg
-    assert f"{empty} holds no run_*.h5 files (run `tiltpile ensemble` first)" in msg
-
+    with pytest.raises(ValueError, match=r"empty holds no run_\*\.h5 files nor records run_\*\.npz"):
+        preparation.check_inputs([dirs[0], empty])

@@ -202,7 +202,22 @@ def test_preparation_section_counts_runs_quiet_past_the_papers_window(tmp_path):
     text = "\n".join(render_preparation(tmp_path))
     assert "| prepared | 3 | 1.00 [0.50, 1.50] | 3 of 3 |" in text
     assert "**prepared** brings the most runs past the paper's 14.4 deg" in text and "(3 of 3; fresh piles: 1)" in text
-    assert "- prepared: first onset +3.10 deg [+1.00, +5.00]" in text
+    assert "- prepared: first onset +3.10 deg [+1.00, +5.00] against the fresh piles." in text
+    # the slide's difference only when every run of both slid (a mean over the runs that slid
+    # favours the early ones); the threshold named is the study's own when it set one
+    doc["numbers"]["differences"]["prepared"]["theta_first_slide"] = {"estimate": 2.3, "low": 1.5,
+                                                                      "high": 3.2}
+    (tmp_path / "preparation.json").write_text(json.dumps(doc))
+    assert "fresh piles, first slide" not in "\n".join(render_preparation(tmp_path))
+    for e in doc["numbers"]["ensembles"].values():
+        e["n_runs_with_slide"] = 3
+    doc["numbers"]["slide_ke_reference"] = 1e-3
+    doc["ensembles"] = [{"label": "fresh", "analysis": {"slide_ke": 1e-3}}, {"label": "prepared"}]
+    (tmp_path / "preparation.json").write_text(json.dumps(doc))
+    text = "\n".join(render_preparation(tmp_path))
+    assert ("- prepared: first onset +3.10 deg [+1.00, +5.00] against the fresh piles, first slide "
+            "in the ramp +2.30 deg [+1.50, +3.20].") in text
+    assert "above 1.0e-03 (the study's slide_ke)" in text and "Read from their records" not in text
 
 
 def test_theta_m_and_z_verdicts_cite_the_studies(tmp_path):

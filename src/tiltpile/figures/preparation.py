@@ -26,6 +26,11 @@ interval (:func:`tiltpile.analysis.stats.diff_ci`; the runs of each ensemble res
 
 A run without slide before the end of its tilt has no slide angle: the slide mean is over the
 runs that slid (``n_runs_with_slide`` says how many), which favours early slides when few slid.
+
+An ensemble may be given by its records (a directory of ``run_*.npz`` and no run file,
+:mod:`tiltpile.record`; the paper-scale ensembles are committed so): everything above comes from
+the per-frame tables the records keep, but the pile at frame 0 (packing fraction, fabric, surface
+tilt) needs the positions only the run files hold, so those columns are NaN for it.
 """
 
 from __future__ import annotations
@@ -71,6 +76,9 @@ PER_RUN = {
                           "rising towards x = L): a history whose cycles flowed leaves it tilted",
 }
 
+# the per-run columns that need the positions of frame 0 (run files, not records)
+STRUCTURE = ("phi_start", "fabric_start", "fabric_major_start", "surface_tilt_start")
+
 # the packing fraction's window keeps 2 d (two grains) from the walls, the rough bottom and the
 # lowest surface grain's centre
 BULK_MARGIN = 2.0
@@ -91,12 +99,15 @@ CHANGE_CUTOFF = 0.005
 def preparation_history(data_dir) -> list[float]:
     """The preparation history shared by the runs of ``data_dir``: the target angles (deg) of the
     pretilt legs from each run file's ``preparation`` record (``protocol.pretilt_deg`` of the
-    run's configuration when the file has no record; [] for fresh piles). ValueError when the runs
-    disagree or the directory holds no run file."""
+    run's configuration when the file has no record; [] for fresh piles); in a directory of
+    records without run files, ``protocol.pretilt_deg`` of each record's configuration.
+    ValueError when the runs disagree or the directory holds neither."""
+    from tiltpile.record import read_meta, record_files
     from tiltpile.store import open_run
     files = run_files(Path(data_dir))
-    if not files:
-        raise ValueError(f"{data_dir}: no run_*.h5 files")
+    records = [] if files else record_files(Path(data_dir))
+    if not files and not records:
+        raise ValueError(f"{data_dir}: no run_*.h5 files (nor records run_*.npz)")
     seen = {}
     for f in files:
         with open_run(f) as r:
@@ -104,6 +115,9 @@ def preparation_history(data_dir) -> list[float]:
             t = (np.atleast_1d(prep).astype(float).tolist() if prep is not None
                  else [float(x) for x in r.config.get("protocol", {}).get("pretilt_deg", ())])
         seen.setdefault(tuple(t), []).append(f.name)
+    for f in records:
+        legs = read_meta(f)["config"].get("protocol", {}).get("pretilt_deg") or ()
+        seen.setdefault(tuple(float(x) for x in legs), []).append(f.name)
     if len(seen) > 1:
         what = "; ".join(f"{list(k)} in {', '.join(v)}" for k, v in seen.items())
         raise ValueError(f"{data_dir}: the runs have different preparation histories ({what})")
@@ -112,8 +126,10 @@ def preparation_history(data_dir) -> list[float]:
 
 def check_inputs(data_dirs, labels=None) -> list[str]:
     """Refuse (ValueError, one message listing every problem) a study that cannot be made:
-    no directory, a directory that does not exist or holds no run file, labels (when given,
-    non-empty) not one per directory or repeated. Returns the labels ([] when none given)."""
+    no directory, a directory that does not exist or holds neither run files nor records, labels
+    (when given, non-empty) not one per directory or repeated. Returns the labels ([] when none
+    given)."""
+    from tiltpile.record import record_files
     dirs = [Path(d) for d in (data_dirs or [])]
     labels = [str(x) for x in (labels or [])]
     problems = []
@@ -122,11 +138,9 @@ def check_inputs(data_dirs, labels=None) -> list[str]:
     for d in dirs:
         if not d.is_dir():
             problems.append(f"{d} is not a directory")
-        elif not run_files(d):
-            why = ("it holds records run_*.npz, which keep no frame's positions: give the "
-                   "directory of their run files" if any(d.glob("run_*.npz"))
-                   else "run `tiltpile ensemble` first")
-            problems.append(f"{d} holds no run_*.h5 files ({why})")
+        elif not run_files(d) and not record_files(d):
+            problems.append(f"{d} holds no run_*.h5 files nor records run_*.npz "
+                            "(run `tiltpile ensemble` first)")
     if labels and len(labels) != len(dirs):
         problems.append(f"{len(labels)} labels for {len(dirs)} ensemble directories: give one "
                         "label per directory, or none to name them by their preparation")
@@ -164,10 +178,13 @@ def start_structure(ens) -> pd.DataFrame:
     (``fabric_start``, ``fabric_major_start``) and the tilt of its free surface
     (``surface_tilt_start``) at frame 0, after its history
     (:mod:`tiltpile.analysis.structure`, bulk window 3 d inside the pile; fabric of the active
-    contacts of bulk grains). NaN where the pile leaves no window."""
+    contacts of bulk grains). NaN where the pile leaves no window, and for every run of an
+    ensemble read from its records (they keep no frame's positions)."""
     from tiltpile.analysis.contacts import active_mask, bulk_mask
     from tiltpile.analysis.structure import bulk_window, fabric, packing_fraction, surface_tilt_deg
     from tiltpile.store import open_run
+    if getattr(ens, "records", None):
+        return pd.DataFrame({c: np.full(len(ens.seeds), np.nan) for c in STRUCTURE})
     rows = []
     for s in ens.seeds:
         with open_run(ens.run_path(s)) as r:
@@ -386,9 +403,11 @@ def compute(ens_list, labels, histories=None, confidence: float = 0.95, **fig2_k
 
 def meta(ens_list, labels, histories) -> dict:
     """What the JSON records beside the numbers: per ensemble its directory, label, preparation
-    history, preset, runs, seeds, grains, config hash and analysis parameters."""
+    history, preset, runs, seeds, grains, config hash, analysis parameters and whether it was
+    read from its records (``from_records``: no frame-0 structure)."""
     return {"ensembles": [dict(e.meta, data_dir=str(e.data_dir), label=lab,
-                               pretilt_deg=[float(x) for x in h])
+                               pretilt_deg=[float(x) for x in h],
+                               from_records=bool(getattr(e, "records", None)))
                           for e, lab, h in zip(ens_list, labels, histories)]}
 
 
@@ -484,6 +503,12 @@ def plot(data: dict, numbers: dict):
         ax.text(-0.02, 1.02, lab, transform=ax.transAxes, ha="right", va="bottom",
                 fontstyle="italic", fontweight="bold")
     from matplotlib.ticker import MaxNLocator
+    for ax, q in ((f_ax, "phi_start"), (g_ax, "fabric_start"), (h_ax, "fabric_major_start")):
+        if not any(np.isfinite(data["tables"][lab][q]).any() for lab in labels):
+            # every ensemble read from its records: they keep no frame's positions
+            ax.text(0.5, 0.5, "n/a: records keep\nno positions", transform=ax.transAxes,
+                    ha="center", va="center", fontsize=6, color=style.COLORS["guide"])
+            ax.set_yticks([])
     b.set_ylim(-0.6, max(b.get_ylim()[1], 2.0))
     b.yaxis.set_major_locator(MaxNLocator(integer=True))
     a.set_ylim(bottom=0)
@@ -514,14 +539,16 @@ def plot(data: dict, numbers: dict):
     # one line per ensemble, so that the footer never outgrows the figure
     ref_ke = numbers.get("slide_ke_reference")
     show_ref = ref_ke is not None and np.isfinite(ref_ke)
+    # one threshold for all: the study's slide_ke (each ensemble's Fig. 2a threshold differs)
+    same = len({ens[lab]["slide_ke"] for lab in labels}) == 1 and nens > 1
     lines = []
     for lab in labels:
         e = ens[lab]
         line = (f"{lab}: Fig. 2b Ashman D = {fmt(e['lost_bimodality']['ashman_d'], '.1f')}, valley "
                 f"{fmt(e['lost_bimodality']['valley_depth'], '.2f')}, no contact lost in "
                 f"{fmt(100 * e['lost_zero_fraction'], '.0f')}% of frames; slide KE threshold "
-                f"(Fig. 2a) {e['slide_ke']:.1e}")
-        if show_ref and "n_runs_with_slide_ref_ke" in e:
+                f"{'' if same else '(Fig. 2a) '}{e['slide_ke']:.1e}")
+        if show_ref and not same and "n_runs_with_slide_ref_ke" in e:
             line += (f"; at the reference's {ref_ke:.1e}: {e['n_runs_with_slide_ref_ke']}/"
                      f"{e['n_runs']} slid, {fmt(e['n_precursors_ref_ke_mean'], '.1f')} onsets before")
         lines.append(line)

@@ -91,7 +91,18 @@ def render_preparation(figures_dir) -> list[str]:
     p = Path(figures_dir) / "preparation.json"
     if not p.exists():
         return []
-    n = json.loads(p.read_text())["numbers"]
+    doc = json.loads(p.read_text())
+    n = doc["numbers"]
+    given = [m for m in doc.get("ensembles", []) if "slide_ke" in (m.get("analysis") or {})]
+    ke = _num(n.get("slide_ke_reference"))
+    threshold = (f"a kinetic energy per grain above {_f(ke, '.1e')} (the study's slide_ke)" if given
+                 else "the fresh piles' Fig. 2a kinetic-energy threshold")
+    from_records = [m["label"] for m in doc.get("ensembles", []) if m.get("from_records")]
+    records_note = ((" " if from_records else "")
+                    + (f"Read from their records (no run files): {', '.join(from_records)}; the "
+                       "pile at frame 0 (packing, fabric, surface) needs the run files' positions, "
+                       "the repose angles `tiltpile repose` on the run files: n/a for "
+                       f"{'it' if len(from_records) == 1 else 'them'}." if from_records else ""))
 
     def ci(e, key, fmt):
         m, lo, hi = (_num(e.get(f"{key}_{x}")) for x in ("mean", "ci_low", "ci_high"))
@@ -108,20 +119,20 @@ def render_preparation(figures_dir) -> list[str]:
         return f"{_num(r['estimate']):.1f}{band} ({r.get('n')})"
 
     lines = ["", "## Which pile did the paper analyse? Preparation histories", "",
-             "From `preparation.json` (`make preparation PREP_DIRS=...`): the same preset, piles "
+             "From `preparation.json` (`make preparation PREP_DIRS=...`): the same pile and ramp, piles "
              "tilted back and forth before the analysed ramp (`protocol.pretilt_deg`, or "
              "`protocol.cycles` and `protocol.theta_rev_deg` for Deboeuf et al.'s two cycles past "
              f"theta_rev) against fresh ones ({n['reference']}, the reference); mean [95% bootstrap "
              "interval over runs]. The paper's Fig. 5 needs runs whose first onset comes after "
              f"{QUIET_WINDOW_DEG} deg; Deboeuf et al. give theta_r ~ 15 deg and theta_a ~ 21 deg "
              "for the paper's piles.", "",
-             "Slides in the ramp are detected at the fresh piles' Fig. 2a kinetic-energy threshold "
+             f"Slides in the ramp are detected at {threshold} "
              "for every ensemble. The slide and repose angles come from `tiltpile repose`, which "
              "tilts each finished run on into its large slide and back until the flow stops "
              "(runs measured in brackets); the repose angle is the box's angle then, and the slope "
              "of the free surface to the horizontal (lower: the slide has piled grains downhill). The memory: the first frame losing more than 0.5% of its "
              "contacts (irreversible change, however small) and the first 2% onset over the "
-             "history's amplitude theta_rev.", "",
+             "history's amplitude theta_rev." + records_note, "",
              "| preparation | runs | first 2% onset (deg) | runs quiet past 14.4 deg "
              "| first slide in the ramp (deg; runs) | slide angle (deg; repose) "
              "| repose angle: box (deg) | repose angle: surface (deg) "
@@ -167,6 +178,21 @@ def render_preparation(figures_dir) -> list[str]:
     for label, dd in n.get("differences", {}).items():
         d = dd.get("theta_first_onset")
         if d:
+            slide = _slide_difference(ref, n["ensembles"][label], dd)
             lines.append(f"- {label}: first onset {d['estimate']:+.2f} deg [{d['low']:+.2f}, {d['high']:+.2f}] "
-                         "against the fresh piles.")
+                         f"against the fresh piles{slide}.")
     return lines
+
+
+def _slide_difference(ref: dict, e: dict, dd: dict) -> str:
+    """', first slide in the ramp +a deg [lo, hi]' when every run of both ensembles slid before
+    the end of its tilt (a mean over the runs that slid would favour the early ones), else ''."""
+    key = "theta_first_slide_ref_ke" if "theta_first_slide_ref_ke" in dd else "theta_first_slide"
+    count = "n_runs_with_slide" + key[len("theta_first_slide"):]
+    d = dd.get(key)
+    if not d or any(x.get(count) != x.get("n_runs") for x in (ref, e)):
+        return ""
+    if not all(math.isfinite(_num(d.get(k))) for k in ("estimate", "low", "high")):
+        return ""
+    return (f", first slide in the ramp {d['estimate']:+.2f} deg "
+            f"[{d['low']:+.2f}, {d['high']:+.2f}]")
