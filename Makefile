@@ -314,6 +314,14 @@ $(PREP_EXECUTED)/.executed: notebooks/preparation.ipynb src/tiltpile/figures/pre
 	@test -f $(PREP_FIGURES)/preparation.json || { echo "notebooks/preparation.ipynb did not write $(PREP_FIGURES)/preparation.json"; exit 1; }
 	@touch $@
 
+# `make preparation-paper`: the same study at the paper's scale from the committed records,
+# cycled (figures/paper/records) against fresh (figures/paper-fresh/records), slides at the
+# avalanche angle's 1e-3 m g d per grain, into figures/paper/preparation.{png,json} (seconds)
+.PHONY: preparation-paper
+preparation-paper:
+	@$(MAKE) --no-print-directory preparation PREP_DIRS="figures/paper-fresh/records figures/paper/records" \
+	  PREP_FIGURES=figures/paper VARIANT=paper-prep NB="-p slide_ke 0.001"
+
 zcount: $(PREP_EXECUTED)/.zcount
 $(PREP_EXECUTED)/.zcount: $(ZCOUNT_CODE) $(PREP_EXECUTED)/.inputs \
                           $(if $(wildcard $(PREP_FIGURES)/zcount.json),,FORCE) | $(STAMP)

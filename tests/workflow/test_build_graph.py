@@ -241,6 +241,20 @@ def test_a_missing_study_output_is_rebuilt(tree):
         (tree / "figures/zcount.json.away").rename(tree / "figures/zcount.json")
 
 
+def test_the_paper_scale_preparation_study_reads_the_committed_records(tree):
+    """make preparation-paper: the study on the two paper-scale record directories, fresh first
+    (the reference), slides at 1e-3, into figures/paper with its own executed directory (the
+    default study's stamps stay where they are)."""
+    r = subprocess.run(["make", "-n", "preparation-paper"], cwd=tree, capture_output=True,
+                       text=True, timeout=120, env=MAKE_ENV)
+    assert r.returncode == 0, r.stderr
+    out = " ".join(r.stdout.split())
+    assert ('"data_dirs": ["figures/paper-fresh/records","figures/paper/records"]' in out
+            and '"figures_dir": "figures/paper"' in out and "-- -p slide_ke 0.001" in out)
+    assert "notebooks/executed/preparation-paper/preparation.ipynb" in out
+    assert "notebooks/executed/preparation/" not in out
+
+
 # -- notebook parameters (NB) -------------------------------------------------------------------------
 
 def _files(d: Path) -> dict:
