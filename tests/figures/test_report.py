@@ -141,6 +141,11 @@ def test_onset_and_slide_notes_give_their_own_numbers(tmp_path):
     assert "precursor rearrangements; the large slide" in _note(text, "theta_m")
     _, text = _verdicts(tmp_path, [_fig2(theta_avalanche_per_run=[23.5, 23.1, 24.0, None])])
     assert "(23.8 deg) is more than 2 deg above" in _note(text, "theta_slide")
+    assert "freshly deposited" not in _note(text, "theta_slide")      # no history given
+    fresh = _fig2(theta_avalanche_per_run=[17.45, 18.3, 20.65, 19.0])
+    fresh["history"] = {"pretilt_deg": [], "label": "fresh"}
+    _, text = _verdicts(tmp_path, [fresh])
+    assert "Our piles are freshly deposited; Deboeuf et al. measured" in _note(text, "theta_slide")
 
 
 def test_fig6_minimum_below_the_single_grain_bound_disagrees(tmp_path):

@@ -75,6 +75,9 @@ def _theta_slide(n: dict):
     elif not ok:
         note = (f"our median first large slide ({med_txt} deg) is more than 2 deg "
                 f"{'below' if med < 21.0 else 'above'} the literature's ~21 deg.")
+        if (n.get("history") or {}).get("pretilt_deg") == []:
+            note += (" Our piles are freshly deposited; Deboeuf et al. measured theirs after two "
+                     "cycles past theta_rev (the preparation study compares the two histories).")
     return ours, _verdict(ok, measurable), note
 
 
