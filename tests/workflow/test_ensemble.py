@@ -278,6 +278,46 @@ def test_bad_input_fails_clearly_and_writes_nothing(tmp_path, small_config, caps
     assert not out.exists()
 
 
+def test_seeds_with_a_record_are_not_run_again(local_ensemble, tmp_path, capsys):
+    """--skip-recorded: when the run files are gone (a new machine) but the records are
+    committed, those seeds are not computed again; the other seeds run as usual. Records of
+    another configuration, or damaged ones, are refused in one line before anything is written."""
+    import warnings
+
+    from tiltpile.figures.records import write_records
+
+    src, _, _ = local_ensemble
+    records = tmp_path / "records"
+    with warnings.catch_warnings():
+        warnings.simplefilter("ignore")         # 60 grains: the cutoff's resolution warning
+        write_records(src, records, workers=1, progress=False)
+    assert sorted(p.name for p in records.glob("run_*.npz")) == ["run_0000.npz", "run_0001.npz"]
+    # every seed recorded: nothing runs, nothing is written
+    out = tmp_path / "new"
+    assert main(_cli(out, "--runs", "2", "--workers", "1", "--skip-recorded", str(records))) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert (summary["recorded"], summary["done"], summary["runs"]) == ([0, 1], 2, 2)
+    assert not out.exists()
+    # seed 2 has no record: it alone runs
+    assert main(_cli(out, "--runs", "3", "--workers", "1", "--skip-recorded", str(records),
+                     "--quiet")) == 0
+    summary = json.loads(capsys.readouterr().out.strip().splitlines()[-1])
+    assert (summary["recorded"], summary["done"], summary["failed"]) == ([0, 1], 3, [])
+    assert sorted(p.name for p in out.glob("run_*.h5")) == ["run_0002.h5"]
+    # records of another configuration: refused, nothing written
+    other = tmp_path / "other"
+    assert main(_cli(other, "--runs", "3", "--skip-recorded", str(records),
+                     overrides=SMALL + ["solver.tol=1e-6"])) == 2
+    err = capsys.readouterr().err
+    assert "run_0000.npz is a record of another configuration" in err and len(err.splitlines()) == 1
+    (records / "run_0001.npz").write_bytes(b"not a record")
+    assert main(_cli(other, "--runs", "3", "--skip-recorded", str(records))) == 2
+    assert "run_0001.npz" in capsys.readouterr().err
+    assert main(_cli(other, "--runs", "3", "--skip-recorded", str(tmp_path / "none"))) == 2
+    assert "not a directory" in capsys.readouterr().err
+    assert not other.exists()
+
+
 def test_add_parser_registers_the_command():
     p = argparse.ArgumentParser(prog="tiltpile")
     sub = p.add_subparsers(dest="command", required=True)

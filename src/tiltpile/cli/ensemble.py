@@ -22,8 +22,34 @@ def add_parser(sub) -> None:
                    help="address of a running dask scheduler (tcp://host:port); default: a LocalCluster")
     p.add_argument("--workers", type=int, metavar="W",
                    help="LocalCluster worker processes (default: one per core, at most one per run)")
+    p.add_argument("--skip-recorded", type=Path, metavar="RECORDS",
+                   help="skip the seeds whose record (RECORDS/run_SSSS.npz, `tiltpile record`) "
+                        "exists: a run whose record is committed is not computed again when its "
+                        "run file is gone (records of another configuration are refused)")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run, interrupted=INTERRUPTED)
+
+
+def recorded_seeds(records: Path, config_hash: str) -> set[int]:
+    """The seeds of the records in ``records`` (``run_*.npz``), all of which must be records of
+    the configuration ``config_hash``; ConfigError (one line) for a missing directory, a damaged
+    record or one of another configuration."""
+    from tiltpile.record import RecordError, read_meta, record_files
+
+    if not records.is_dir():
+        raise ConfigError(f"--skip-recorded {records}: not a directory")
+    seeds = set()
+    for path in record_files(records):
+        try:
+            meta = read_meta(path)
+        except RecordError as e:
+            raise ConfigError(f"--skip-recorded: {e}") from None
+        if meta.get("config_hash") != config_hash:
+            raise ConfigError(f"--skip-recorded: {path} is a record of another configuration "
+                              f"(hash {str(meta.get('config_hash'))[:12]}, this one "
+                              f"{config_hash[:12]}): give the records of this ensemble")
+        seeds.add(int(meta["seed"]))
+    return seeds
 
 
 def run(args) -> int:
@@ -38,10 +64,18 @@ def run(args) -> int:
         raise ConfigError("--workers sizes the LocalCluster; with --scheduler the cluster brings its own")
     cfg = load_config(args)
     seeds = range(args.first_seed, args.first_seed + args.runs)
-    manifest = run_ensemble(cfg, seeds, args.out, scheduler=args.scheduler, workers=args.workers,
+    skipped = (sorted(recorded_seeds(args.skip_recorded, cfg.hash()) & set(seeds))
+               if args.skip_recorded is not None else [])
+    todo = [s for s in seeds if s not in skipped]
+    summary = {"out": str(args.out), "manifest": str(Path(args.out) / MANIFEST), "runs": len(seeds)}
+    if skipped:
+        summary["recorded"] = skipped
+    if not todo:
+        print(json.dumps({**summary, "done": len(skipped), "failed": []}))
+        return 0
+    manifest = run_ensemble(cfg, todo, args.out, scheduler=args.scheduler, workers=args.workers,
                             progress=not args.quiet)
-    failed = [s for s in failed_runs(manifest) if s in seeds]
-    print(json.dumps({"out": str(args.out), "manifest": str(Path(args.out) / MANIFEST), "runs": len(seeds),
-                      "done": sum(manifest["runs"][str(s)]["status"] == "done" for s in seeds),
-                      "failed": failed}))
+    failed = [s for s in failed_runs(manifest) if s in todo]
+    done = sum(manifest["runs"][str(s)]["status"] == "done" for s in todo)
+    print(json.dumps({**summary, "done": done + len(skipped), "failed": failed}))
     return 1 if failed else 0
