@@ -54,6 +54,39 @@ def test_info_of_an_ensemble_directory(tiny_ensemble, capsys):
     assert any("tiltpile observables" in ln for ln in lines)   # no cache: says how to get onsets
 
 
+def test_an_interrupted_run_says_where_its_checkpoint_stands(tiny_ensemble, tmp_path, capsys):
+    """The line under an incomplete run: its checkpoint's history leg (of the manifest's legs) or
+    ramp angle, step, sweeps and wall time so far; nothing without a checkpoint."""
+    import json
+    import shutil
+
+    d = tmp_path / "ens"
+    shutil.copytree(tiny_ensemble, d)
+    man = json.loads((d / "ensemble.json").read_text())
+    man["config"]["protocol"]["pretilt_deg"] = [16.0, -16.0, 0.0]
+    (d / "ensemble.json").write_text(json.dumps(man))
+    rate = man["config"]["protocol"]["tilt_per_step_deg"]
+
+    def lines_after_part(scalars, wall=None):
+        with h5py.File(d / "run_0004.h5.ckpt", "w") as g:
+            g.attrs["scalars"] = json.dumps(scalars)
+            if wall is not None:
+                g.attrs["wall_seconds"] = wall
+        assert main(["info", str(d)]) == 0
+        lines = capsys.readouterr().out.splitlines()
+        k = next(i for i, ln in enumerate(lines) if ln.startswith("run_0004.h5.part"))
+        return lines[k + 1]
+
+    line = lines_after_part({"phase": "pretilt", "leg": 1, "step": 1200, "sweeps": 3_400_000},
+                            wall=5400.0)
+    assert "checkpoint " in line and ": history leg 2 of 3, step 1200, 3.4 M sweeps, 1.5 h so far" in line
+    line = lines_after_part({"phase": "tilt", "tilt_step": 500, "step": 9000, "sweeps": 12_000_000})
+    assert f": ramp at {500 * rate:.2f} deg, step 9000, 12.0 M sweeps" in line and "so far" not in line
+    (d / "run_0004.h5.ckpt").unlink()
+    assert main(["info", str(d)]) == 0
+    assert "checkpoint" not in capsys.readouterr().out
+
+
 def _foreign_h5(path):
     with h5py.File(path, "w") as f:
         f["x"] = np.arange(3)

@@ -9,7 +9,9 @@ active contacts before the next one, computed with :mod:`tiltpile.analysis`), wh
 complete, and its size on disk.
 
 A directory: one line per run file (``run_*.h5``, and any ``.part`` still being written or
-interrupted), then the manifest ``ensemble.json`` (configuration hash, versions, run statuses).
+interrupted, with where its last checkpoint stands: history leg or ramp angle, steps, sweeps and
+wall time so far), then the manifest ``ensemble.json`` (configuration hash, versions, run
+statuses).
 The onsets of a directory come from its observables cache (``tiltpile observables DIR``); they
 are not computed here.
 
@@ -29,7 +31,7 @@ import numpy as np
 from tiltpile.analysis import DEFAULT_PARAMS
 from tiltpile.analysis import avalanche as _av
 from tiltpile.analysis import observables as _ob
-from tiltpile.store import RunFileError, open_run, part_path
+from tiltpile.store import RunFileError, checkpoint_path, open_run, part_path
 
 from .fields import FrameFields
 
@@ -280,6 +282,34 @@ def _dir_onsets(d: Path) -> dict:
     return out
 
 
+def checkpoint_progress(ckpt: Path, protocol: dict) -> str:
+    """Where an interrupted or running run stands, from its checkpoint ``ckpt``: 'checkpoint
+    2026-11-26 17:13: history leg 6 of 6, step 157800, 80.7 M sweeps, 2.2 h so far' (the leg
+    count and the ramp's angle from the ensemble's ``protocol`` when given); '' without a
+    readable checkpoint."""
+    import time
+
+    import h5py
+    try:
+        with h5py.File(ckpt, "r") as g:
+            sc = json.loads(g.attrs["scalars"])
+            wall = float(g.attrs["wall_seconds"]) if "wall_seconds" in g.attrs else None
+    except (OSError, KeyError, ValueError):
+        return ""
+    phase = sc.get("phase")
+    if phase == "pretilt":
+        legs = protocol.get("pretilt_deg") or []
+        what = f"history leg {int(sc.get('leg', 0)) + 1}" + (f" of {len(legs)}" if legs else "")
+    elif phase == "tilt" and protocol.get("tilt_per_step_deg"):
+        what = f"ramp at {int(sc.get('tilt_step', 0)) * float(protocol['tilt_per_step_deg']):.2f} deg"
+    else:
+        what = str(phase)
+    when = time.strftime("%Y-%m-%d %H:%M", time.localtime(ckpt.stat().st_mtime))
+    spent = f", {wall / 3600:.1f} h so far" if wall is not None else ""
+    return (f"checkpoint {when}: {what}, step {int(sc.get('step', 0))}, "
+            f"{float(sc.get('sweeps', 0)) / 1e6:.1f} M sweeps{spent}")
+
+
 def dir_info(d) -> str:
     """One line per run of an ensemble directory, then its manifest (module docstring)."""
     from tiltpile.config import ConfigError
@@ -316,11 +346,15 @@ def dir_info(d) -> str:
                    f"{s['theta_max']:>9.2f} {('-' if n_on is None else n_on):>6} "
                    f"{('-' if math.isnan(first) else f'{first:.2f}'):>6} {warn:>4} "
                    f"{human_size(size):>9}  {'complete' if s['complete'] else 'NOT complete'}")
+    protocol = ((man or {}).get("config") or {}).get("protocol") or {}
     for p in parts:
         size = p.stat().st_size
         total += size
         out.append(f"{p.name:<18} {'':>5} {'':>6} {'':>6} {'':>9} {'':>6} {'':>6} {'':>4} "
                    f"{human_size(size):>9}  incomplete (running or interrupted)")
+        where = checkpoint_progress(checkpoint_path(p.with_suffix("")), protocol)
+        if where:
+            out.append(f"{'':<18} {where}")
     out.append(f"total size {human_size(total)}")
     if files and not ons:
         out.append(f"onsets: no fresh observables cache; run `tiltpile observables {d}`")
