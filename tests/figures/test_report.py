@@ -336,6 +336,46 @@ def test_every_claim_at_every_scale_and_why_a_verdict_changes(tmp_path):
     assert "## Each claim at every scale" not in report.write_report(only, tmp_path / "A.md").read_text()
 
 
+def test_what_changes_a_verdict_is_named_scale_or_history(tmp_path):
+    """For each claim whose verdict changes, the contrast table gives its verdicts across the
+    pairs that differ in one thing (history at one size, size at one history), "same" where they
+    agree and "not yet run" where a scale is missing; a sentence sorts the claims by what moves
+    them, and a size pair whose histories differ says so."""
+    root = tmp_path / "figures"
+    bm = {"ashman_d": 3.3, "delta_bic": 280.0, "valley_depth": 0.6, "valley": 0.002,
+          "means": [-3.1, -2.05], "cutoff_between_means": False, "cutoff_density_ratio": 0.72}
+    gap = dict(bm, cutoff_between_means=True, cutoff_density_ratio=0.5)
+    quiet = {"theta_m_min": 15.0, "theta_m_max": 19.0}           # some run quiet past 14.4 deg
+
+    def scale(preset, n, label, **numbers):
+        return dict(_fig2(**numbers), preset=preset, n_grains=n, history={"label": label})
+
+    _write(root, [scale("default", 1000, "cycled fast", lost_bimodality=bm, **quiet)])
+    _write(root / "default-fresh", [scale("default-fresh", 1000, "fresh", lost_bimodality=bm)])
+    _write(root / "paper-fresh", [scale("paper-fresh", 4000, "fresh", lost_bimodality=bm)])
+    text = report.write_report(root, tmp_path / "R.md").read_text()
+    sec = text.split("### What changes with scale and history")[1].split("\n## ")[0]
+    by = {c.key: c.text for c in report.CLAIMS}
+    assert ("| claim | history: default-fresh → default | history: paper-fresh → paper | "
+            "scale: default-fresh → paper-fresh | scale: default → paper |") in sec
+    assert _row(sec, by["theta_m"]).split(" | ")[1:] == [
+        "disagrees → agrees", "not yet run", "same", "not yet run |"]
+    assert f"Changes with the history: {by['theta_m']}." in sec
+    assert by["cutoff_in_gap"] not in sec                       # the same verdict everywhere
+    assert "also changes the history" not in sec                # default → paper not run
+    _write(root / "paper", [scale("paper", 4000, "cycled", lost_bimodality=gap, **quiet)])
+    sec = report.write_report(root, tmp_path / "R.md").read_text().split(
+        "### What changes with scale and history")[1].split("\n## ")[0]
+    assert _row(sec, by["cutoff_in_gap"]).split(" | ")[1:] == [
+        "same", "disagrees → agrees", "same", "disagrees → agrees |"]
+    assert _row(sec, by["theta_m"]).split(" | ")[1:] == [
+        "disagrees → agrees", "disagrees → agrees", "same", "same |"]
+    line = next(x for x in sec.splitlines() if x.startswith("Changes with both"))
+    assert by["cutoff_in_gap"] in line and by["theta_m"] not in line
+    assert ("The pair default → paper also changes the history (1000 x 3, cycled fast → "
+            "4000 x 3, cycled)") in sec
+
+
 def test_the_report_reads_every_figure_of_the_compared_scales(tmp_path):
     root = tmp_path / "figures"
     _write(root, [_fig2()])

@@ -96,6 +96,9 @@ def render(figs: dict[str, dict], claims: list[Claim], scales: list[str] | None 
 
 # the scales whose verdicts are set side by side (smoke, the test scale, is left out)
 COMPARED = ("default", "default-fresh", "paper", "paper-fresh")
+# pairs of compared scales that differ in one thing: (what changes, from, to)
+CONTRASTS = (("history", "default-fresh", "default"), ("history", "paper-fresh", "paper"),
+             ("scale", "default-fresh", "paper-fresh"), ("scale", "default", "paper"))
 
 
 def _piles(doc: dict) -> str:
@@ -133,6 +136,8 @@ def render_by_scale(figures_dir, claims: list[Claim]) -> list[str]:
     lines += ["", "### What changes with scale and history", ""]
     if not changed:
         lines.append("Every claim has the same verdict at every scale run.")
+    else:
+        lines += _contrasts(judged, changed)
     for c, cells in changed:
         said = "; ".join(f"{s} ({_piles(judged[s][0])}): {v[2]}, {v[1]}" for s, v in cells.items())
         notes: dict[str, list[str]] = {}          # a note shared by several scales is said once
@@ -142,6 +147,47 @@ def render_by_scale(figures_dir, claims: list[Claim]) -> list[str]:
         why = " ".join(f"At {' and '.join(where)}: {note}" for note, where in notes.items())
         lines.append(f"- **{c.text}**. {said}." + (f" {why}" if why else ""))
     return lines
+
+
+def _contrasts(judged: dict, changed: list) -> list[str]:
+    """Markdown lines: for each claim whose verdict changes, its verdicts across the pairs of
+    ``CONTRASTS`` (one preparation at two sizes, or two preparations at one size), a sentence
+    naming the claims that change with the history, with the scale, or with both, and a warning
+    where a scale pair's histories are not the same (its change is then not the size's alone)."""
+    def piles(s):
+        return _piles(judged[s][0])
+
+    head = [f"{what}: {a} → {b}" for what, a, b in CONTRASTS]
+    lines = ["Which change moves each verdict: one history at two sizes (scale) or two histories at "
+             "one size (history); \"same\" where both scales give the same verdict.", "",
+             "| claim | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
+    by: dict[str, list[str]] = {}
+    for c, cells in changed:
+        row, moved = [], set()
+        for what, a, b in CONTRASTS:
+            if a not in cells or b not in cells:
+                row.append("not yet run")
+            elif cells[a][2] == cells[b][2]:
+                row.append("same")
+            else:
+                row.append(f"{cells[a][2]} → {cells[b][2]}")
+                moved.add(what)
+        lines.append(f"| {c.text} | " + " | ".join(row) + " |")
+        key = " and ".join(sorted(moved, reverse=True)) if moved else "neither pair run"
+        by.setdefault(key, []).append(c.text)
+    lines.append("")
+    for key in ("history", "scale", "scale and history", "neither pair run"):
+        if key in by:
+            what = {"neither pair run": "With no pair of scales run for it"}.get(
+                key, f"Changes with the {key}" if key != "scale and history" else
+                "Changes with both the scale and the history")
+            lines.append(f"{what}: " + "; ".join(by[key]) + ".")
+    for what, a, b in CONTRASTS:
+        if what == "scale" and a in judged and b in judged and \
+                _history(judged[a][0]) != _history(judged[b][0]):
+            lines.append(f"The pair {a} → {b} also changes the history ({piles(a)} → {piles(b)}), "
+                         "so its change is not the number of grains alone.")
+    return lines + [""]
 
 
 def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
