@@ -87,6 +87,33 @@ def test_an_interrupted_run_says_where_its_checkpoint_stands(tiny_ensemble, tmp_
     assert "checkpoint" not in capsys.readouterr().out
 
 
+def test_an_ensemble_says_what_its_runs_cost_and_what_is_left(tiny_ensemble, capsys):
+    """Below the manifest: the finished runs' sweeps and wall time per run and core-hours, then
+    the runs left at that median, the running ones less their checkpoints' time so far, and the
+    wall time on the last invocation's workers."""
+    from tiltpile.view.info import cost_lines
+
+    assert main(["info", str(tiny_ensemble)]) == 0
+    out = capsys.readouterr().out
+    assert "  cost     2 finished: " in out and "(median of 2 timed whole)" in out
+    assert "  left     1 run(s) (0 pending, 1 running)" in out
+    whole = {"sweeps": 90e6, "seconds": 7200.0, "resumed_from_frame": -1}
+    resumed = {"sweeps": 100e6, "seconds": 60.0, "resumed_from_frame": 400}
+    lines = cost_lines([whole, dict(whole, seconds=9000.0), resumed], 4, [3600.0, None], 2)
+    assert lines[0] == ("  cost     3 finished: 93.3 M sweeps per run (mean), 2 h 15 min per run "
+                        "(median of 2 timed whole), ~6.75 core-hours (median x 3)")
+    # 6 runs at 2.25 h, less the 1 h one running run has spent: 12.5 core-hours, 6.25 h on 2
+    assert lines[1] == ("  left     6 run(s) (4 pending, 2 running): ~12.5 core-hours at that "
+                        "median, ~6.25 h on 2 worker(s)")
+    assert cost_lines([resumed], 3, [], None) == [
+        "  cost     1 finished: 100.0 M sweeps per run (mean), wall time not recorded whole "
+        "(resumed runs)"]
+    assert cost_lines([whole], 0, [], 2) == [
+        "  cost     1 finished: 90.0 M sweeps per run (mean), 2 h 00 min per run "
+        "(median of 1 timed whole), ~2 core-hours (median x 1)"]
+    assert cost_lines([], 5, [], 2) == []
+
+
 def _foreign_h5(path):
     with h5py.File(path, "w") as f:
         f["x"] = np.arange(3)

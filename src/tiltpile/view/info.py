@@ -11,7 +11,7 @@ complete, and its size on disk.
 A directory: one line per run file (``run_*.h5``, and any ``.part`` still being written or
 interrupted, with where its last checkpoint stands: history leg or ramp angle, steps, sweeps and
 wall time so far), then the manifest ``ensemble.json`` (configuration hash, versions, run
-statuses).
+statuses) and what the finished runs cost and the rest will (:func:`cost_lines`).
 The onsets of a directory come from its observables cache (``tiltpile observables DIR``); they
 are not computed here.
 
@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import json
 import math
+import re
 import warnings
 from pathlib import Path
 
@@ -282,6 +283,50 @@ def _dir_onsets(d: Path) -> dict:
     return out
 
 
+def _checkpoint_state(ckpt: Path) -> tuple[dict, float | None] | None:
+    """(scalars, wall seconds so far or None) of a checkpoint; None if it cannot be read."""
+    import h5py
+    try:
+        with h5py.File(ckpt, "r") as g:
+            sc = json.loads(g.attrs["scalars"])
+            wall = float(g.attrs["wall_seconds"]) if "wall_seconds" in g.attrs else None
+    except (OSError, KeyError, ValueError):
+        return None
+    return sc, wall
+
+
+def cost_lines(costs: list[dict], n_pending: int, running_walls: list[float | None],
+               workers: int | None) -> list[str]:
+    """What an ensemble's finished runs cost and what is left, from their cost records
+    (``Run.cost``): sweeps per run (mean), wall time per run (median of the runs timed whole,
+    :func:`tiltpile.analysis.ensemble_data.ensemble_cost`) and its core-hours; the runs left
+    (``n_pending`` not started, one per entry of ``running_walls``, the wall seconds their
+    checkpoints have spent, None if unknown) at that median, the running ones less what they have
+    spent, and in hours of wall time on ``workers`` workers. [] without a finished run."""
+    from tiltpile.analysis.ensemble_data import ensemble_cost
+
+    if not costs:
+        return []
+    c = ensemble_cost(costs)
+    n = len(costs)
+    sweeps = f"{c['sweeps_per_run'] / 1e6:.1f} M sweeps per run (mean)" if c["sweeps_per_run"] else ""
+    sec = c["seconds_per_run"]
+    if sec is None:
+        return [f"  cost     {n} finished: " + ", ".join(
+            x for x in (sweeps, "wall time not recorded whole (resumed runs)") if x)]
+    out = [f"  cost     {n} finished: " + ", ".join(x for x in (
+        sweeps, f"{_duration(sec)} per run (median of {c['runs_timed']} timed whole)",
+        f"~{sec * n / 3600:.3g} core-hours (median x {n})") if x)]
+    left = n_pending + len(running_walls)
+    if left:
+        hours = (left * sec - sum(w for w in running_walls if w is not None)) / 3600
+        hours = max(hours, 0.0)
+        wall = f", ~{hours / workers:.3g} h on {workers} worker(s)" if workers else ""
+        out.append(f"  left     {left} run(s) ({n_pending} pending, {len(running_walls)} running): "
+                   f"~{hours:.3g} core-hours at that median{wall}")
+    return out
+
+
 def checkpoint_progress(ckpt: Path, protocol: dict) -> str:
     """Where an interrupted or running run stands, from its checkpoint ``ckpt``: 'checkpoint
     2026-11-26 17:13: history leg 6 of 6, step 157800, 80.7 M sweeps, 2.2 h so far' (the leg
@@ -289,13 +334,10 @@ def checkpoint_progress(ckpt: Path, protocol: dict) -> str:
     readable checkpoint."""
     import time
 
-    import h5py
-    try:
-        with h5py.File(ckpt, "r") as g:
-            sc = json.loads(g.attrs["scalars"])
-            wall = float(g.attrs["wall_seconds"]) if "wall_seconds" in g.attrs else None
-    except (OSError, KeyError, ValueError):
+    got = _checkpoint_state(ckpt)
+    if got is None:
         return ""
+    sc, wall = got
     phase = sc.get("phase")
     if phase == "pretilt":
         legs = protocol.get("pretilt_deg") or []
@@ -332,6 +374,7 @@ def dir_info(d) -> str:
            f"{'first':>6} {'warn':>4} {'size':>9}  state"
     out.append(head)
     total = 0
+    costs = []
     for p in files:
         size = p.stat().st_size
         total += size
@@ -340,6 +383,8 @@ def dir_info(d) -> str:
         except InfoError as e:
             out.append(f"{p.name:<18} {'':>5} unreadable: {str(e).removeprefix(str(p) + ': ')}")
             continue
+        if s["complete"] and s["cost"]:
+            costs.append(s["cost"])
         n_on, first = ons.get(s["seed"], (None, float("nan")))
         warn = len(s["health"].get("warnings") or []) if s["health"] else "-"
         out.append(f"{p.name:<18} {s['seed']:>5} {s['n_grains']:>6} {s['n_frames']:>6} "
@@ -379,6 +424,11 @@ def dir_info(d) -> str:
         inv = man.get("invocations") or []
         if inv:
             out.append(f"  {len(inv)} invocation(s), last {inv[-1].get('started', '?')}")
+        running = [checkpoint_path(Path(d / r["file"])) for r in runs.values()
+                   if r.get("status") == "running" and r.get("file")]
+        walls = [(_checkpoint_state(c) or ({}, None))[1] for c in running]
+        m = re.search(r"(\d+) workers?", str(inv[-1].get("engine", ""))) if inv else None
+        out += cost_lines(costs, counts.get("pending", 0), walls, int(m.group(1)) if m else None)
     return "\n".join(out)
 
 
