@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 
 import pytest
 
@@ -68,7 +69,7 @@ def _fig2(**numbers):
             "z_quiet_run_mean": 3.215, "z_quiet_run_mean_ci_low": 3.209,
             "z_quiet_run_mean_ci_high": 3.22, "lost_zero_fraction": 0.49,
             "lost_bimodality": {"ashman_d": 3.3, "delta_bic": 280.0, "valley_depth": 0.6,
-                                "valley": 0.002, "means": [-3.1, -2.05],
+                                "valley": 0.002, "means": [-3.1, -2.05], "sds": [0.2, 0.4],
                                 "cutoff_between_means": False, "cutoff_density_ratio": 0.72},
             "onset_shift_median_frames": 5.0, "onset_shift_max_frames": 10.0,
             "onset_unmatched_fraction": 0.22}
@@ -109,12 +110,28 @@ def test_onset_claims_compare_like_with_like(tmp_path):
     v, _ = _verdicts(tmp_path, [_fig2(theta_slide_per_run=[15.0, 15.5, 16.0, 17.0],
                                       theta_avalanche_per_run=[21.2, 20.8, 22.2, 21.25])])
     assert v["theta_slide"] == "agrees"
-    # the cutoff between the means but on the upper population's peak is not in the gap
-    bm = dict(_fig2()["numbers"]["lost_bimodality"], cutoff_between_means=True)
-    v, _ = _verdicts(tmp_path, [_fig2(lost_bimodality=dict(bm, cutoff_density_ratio=1.9))])
+    # the cutoff between the means but on the upper population's peak is not in the gap, even
+    # where the density there is a little below the lower peak's (the upper population is the
+    # lower peak: 4000 cycled grains, upper mean at 2.4% lost, cutoff 0.17 sd below it)
+    bm = dict(_fig2()["numbers"]["lost_bimodality"], cutoff_between_means=True,
+              means=[-3.40, -1.62], sds=[0.39, 0.48], cutoff_density_ratio=0.99)
+    v, text = _verdicts(tmp_path, [_fig2(lost_bimodality=bm)])
     assert v["cutoff_in_gap"] == "disagrees"
-    v, _ = _verdicts(tmp_path, [_fig2(lost_bimodality=dict(bm, cutoff_density_ratio=0.2))])
-    assert v["cutoff_in_gap"] == "agrees"
+    assert "0% of the lower population above it and 43% of the upper one below it" in text
+    assert ("within one standard deviation of the upper population's mean, so it splits that "
+            "population (43% of its frames on the other side)") in _note(text, "cutoff_in_gap")
+    # one standard deviation from both means: separated; a little less: not
+    c = math.log10(0.02)
+    for k, verdict in ((1.05, "agrees"), (0.95, "disagrees")):
+        far = dict(bm, means=[c - 2.0, c + k * 0.3], sds=[0.5, 0.3], cutoff_density_ratio=0.2)
+        v, _ = _verdicts(tmp_path, [_fig2(lost_bimodality=far)])
+        assert v["cutoff_in_gap"] == verdict, k
+        far = dict(bm, means=[c - k * 0.5, c + 2.0], sds=[0.5, 0.3], cutoff_density_ratio=0.2)
+        v, _ = _verdicts(tmp_path, [_fig2(lost_bimodality=far)])
+        assert v["cutoff_in_gap"] == verdict, k
+    # without the populations' widths (a JSON before they were written) nothing is judged
+    v, _ = _verdicts(tmp_path, [_fig2(lost_bimodality=dict(bm, sds=None))])
+    assert v["cutoff_in_gap"] == "inconclusive"
     # onsets without partners: the median move is "more than 10 frames"
     v, _ = _verdicts(tmp_path, [_fig2(onset_shift_median_frames=None)])
     assert v["robust"] == "disagrees"
@@ -301,9 +318,11 @@ def test_every_claim_at_every_scale_and_why_a_verdict_changes(tmp_path):
     value and the note of the scale where it does not agree (scale-aware: the grains count)."""
     root = tmp_path / "figures"
     bm = {"ashman_d": 3.3, "delta_bic": 280.0, "valley_depth": 0.6, "valley": 0.002,
-          "means": [-3.1, -2.05], "cutoff_between_means": False, "cutoff_density_ratio": 0.72}
+          "means": [-3.1, -2.05], "sds": [0.2, 0.4], "cutoff_between_means": False,
+          "cutoff_density_ratio": 0.72}
     _write(root, [_fig2(lost_bimodality=bm, n_active_mean=1800.0)])
-    paper = dict(_fig2(lost_bimodality=dict(bm, cutoff_between_means=True, cutoff_density_ratio=0.5),
+    paper = dict(_fig2(lost_bimodality=dict(bm, cutoff_between_means=True, means=[-3.1, -1.0],
+                                            sds=[0.3, 0.3], cutoff_density_ratio=0.5),
                        theta_avalanche_per_run=[21.2, 20.8, 22.2], n_active_mean=7200.0),
                  preset="paper", n_grains=4000)
     _write(root / "paper", [paper])
@@ -343,8 +362,10 @@ def test_what_changes_a_verdict_is_named_scale_or_history(tmp_path):
     them, and a size pair whose histories differ says so."""
     root = tmp_path / "figures"
     bm = {"ashman_d": 3.3, "delta_bic": 280.0, "valley_depth": 0.6, "valley": 0.002,
-          "means": [-3.1, -2.05], "cutoff_between_means": False, "cutoff_density_ratio": 0.72}
-    gap = dict(bm, cutoff_between_means=True, cutoff_density_ratio=0.5)
+          "means": [-3.1, -2.05], "sds": [0.2, 0.4], "cutoff_between_means": False,
+          "cutoff_density_ratio": 0.72}
+    gap = dict(bm, cutoff_between_means=True, means=[-3.1, -1.0], sds=[0.3, 0.3],
+               cutoff_density_ratio=0.5)
     quiet = {"theta_m_min": 15.0, "theta_m_max": 19.0}           # some run quiet past 14.4 deg
 
     def scale(preset, n, label, **numbers):

@@ -64,3 +64,23 @@ def _ci_text(d: dict, fmt: str = ".2f") -> str:
     d = d or {}
     return (f"{_f(_num(d.get('estimate')), fmt)} [{_f(_num(d.get('low')), fmt)}, "
             f"{_f(_num(d.get('high')), fmt)}]")
+
+
+# A cutoff separates two populations when at most this share of either lies on its wrong side:
+# the share of a Gaussian beyond one standard deviation from its mean (15.9%).
+SEPARATION = 0.5 * math.erfc(1.0 / math.sqrt(2.0))
+
+
+def _wrong_side(b: dict, cutoff: float) -> tuple[float, float]:
+    """(share of the lower population above ``cutoff``, share of the upper one below it) of the
+    two Gaussians fig2 fits to log10 of the lost fraction (its ``lost_bimodality`` means, sds);
+    NaNs where they are missing."""
+    means, sds = b.get("means") or [], b.get("sds") or []
+    vals = [_num(v) for v in (*means, *sds)]
+    if len(means) != 2 or len(sds) != 2 or not all(math.isfinite(v) for v in vals) or not cutoff > 0:
+        return float("nan"), float("nan")
+    (m1, m2), (s1, s2), c = vals[:2], vals[2:], math.log10(cutoff)
+    if s1 <= 0 or s2 <= 0:
+        return float("nan"), float("nan")
+    return (0.5 * math.erfc((c - m1) / (s1 * math.sqrt(2.0))),
+            0.5 * math.erfc((m2 - c) / (s2 * math.sqrt(2.0))))

@@ -7,8 +7,8 @@ from __future__ import annotations
 
 import math
 
-from .judging import (AGREES, DISAGREES, INCONCLUSIVE, Claim, Rule, _ci, _f, _num, _overlaps,
-                      _verdict)
+from .judging import (AGREES, DISAGREES, INCONCLUSIVE, SEPARATION, Claim, Rule, _ci, _f, _num,
+                      _overlaps, _verdict, _wrong_side)
 
 
 def _theta_m(n: dict):
@@ -142,20 +142,26 @@ def _cutoff_in_gap(n: dict):
     b = n.get("lost_bimodality") or {}
     between = b.get("cutoff_between_means")
     means = b.get("means") or [None, None]
-    ratio = _num(b.get("cutoff_density_ratio"))
+    cutoff = _num(n.get("cutoff"))
+    above, below = _wrong_side(b, cutoff)
     ms = ", ".join(_f(10 ** _num(m), ".2%") if m is not None else "n/a" for m in means)
-    ours = (f"population means at {ms} lost; density at the {_f(_num(n.get('cutoff')), '.0%')} "
-            f"cutoff {_f(ratio, '.2f')} of the lower peak")
-    ok = bool(between) and ratio < 1.0
-    note = "" if ok or between is None else (
+    ours = (f"population means at {ms} lost; the {_f(cutoff, '.0%')} cutoff leaves "
+            f"{_f(above, '.0%')} of the lower population above it and {_f(below, '.0%')} of the "
+            f"upper one below it (density there {_f(_num(b.get('cutoff_density_ratio')), '.2f')} "
+            "of the lower peak)")
+    measurable = math.isfinite(above) and math.isfinite(below)
+    ok = measurable and above <= SEPARATION and below <= SEPARATION
+    note = "" if ok or not measurable else (
         f"the gap between our two populations is at {_f(_num(b.get('valley')), '.2%')} lost, and "
         "the 2% cutoff is not in it: "
         + ("it lies beyond both population means, on the far side of the upper one (at "
            f"{_contacts_at_cutoff(n)}, and precursor rearrangements of the top layers lose that "
            "many)." if not between else
-           "it lies between the means but where the density is higher than at the lower peak, "
-           "i.e. inside the upper population rather than in the valley."))
-    return ours, _verdict(ok, between is not None), note
+           f"it lies between the means but within one standard deviation of the "
+           f"{'upper' if below > above else 'lower'} population's mean, so it splits that population "
+           f"({_f(max(above, below), '.0%')} of its frames on the other side) instead of "
+           "separating the two."))
+    return ours, _verdict(ok, measurable), note
 
 
 def _contacts_at_cutoff(n: dict) -> str:
@@ -339,9 +345,10 @@ RULES_PAPER: dict[str, Rule] = {
                             "two modes). Frames losing nothing are reported apart."),
     "cutoff_in_gap": Rule("\"The good separation between the two populations allows us to apply a cutoff "
                           "of a maximum of 2%\"",
-                          "agrees if the 2% cutoff lies between the means of the two fitted "
-                          "populations and the fitted density there is below that of the lower of "
-                          "the two peaks (the cutoff is in the valley, not on a population)."),
+                          "agrees if the 2% cutoff separates the two fitted populations (Gaussians "
+                          "in log10 of the lost fraction): at most 16% of either lies on its wrong "
+                          "side, i.e. the cutoff is at least one standard deviation from both means, "
+                          "in the valley between them and not on a population."),
     "orientation": Rule("clusters align at \"roughly 60 deg\" to gravity",
                         "mean angle of the long axis of clusters of >= 5 grains to gravity; agrees "
                         "within 10 deg (\"roughly\")."),

@@ -9,7 +9,7 @@ import math
 import statistics
 from pathlib import Path
 
-from .judging import _ci, _f, _num
+from .judging import SEPARATION, _ci, _f, _num, _wrong_side
 
 
 SCALES = (("smoke", "smoke"), ("default", ""), ("default-fresh", "default-fresh"), ("paper", "paper"),
@@ -24,12 +24,16 @@ def scale_dirs(figures_dir) -> dict[str, Path]:
     return {name: (root / sub if sub else root) for name, sub in SCALES}
 
 
-def _gap_text(b: dict) -> str:
-    between, ratio = b.get("cutoff_between_means"), _num(b.get("cutoff_density_ratio"))
-    if between is None:
+def _gap_text(b: dict, cutoff: float) -> str:
+    """'yes|no (lower above / upper below, where)': the shares of the two fitted populations on
+    the wrong side of the cutoff (the cutoff_in_gap claim's rule)."""
+    between = b.get("cutoff_between_means")
+    above, below = _wrong_side(b, cutoff)
+    if between is None or not (math.isfinite(above) and math.isfinite(below)):
         return "n/a"
     where = "between the means" if between else "beyond both means"
-    return f"{'yes' if between and ratio < 1.0 else 'no'} ({_f(ratio, '.2f')}, {where})"
+    ok = above <= SEPARATION and below <= SEPARATION
+    return f"{'yes' if ok else 'no'} ({_f(above, '.0%')} / {_f(below, '.0%')}, {where})"
 
 
 def _per_run_angles(n: dict, name: str) -> str:
@@ -58,7 +62,8 @@ def _scale_rows(n2: dict, doc: dict | None) -> dict[str, str]:
         "frames losing no contact": _f(_num(n.get("lost_zero_fraction")), ".0%"),
         "Ashman D / valley depth": f"{_f(_num(b.get('ashman_d')), '.1f')} / {_f(_num(b.get('valley_depth')), '.2f')}",
         "valley at (lost fraction)": _f(_num(b.get("valley")), ".2%"),
-        "cutoff in the gap (density there / lower peak)": _gap_text(b),
+        "cutoff in the gap (lower population above it / upper below it)":
+            _gap_text(b, _num(n.get("cutoff"))),
         "<z> quiet": _ci(n, "z_quiet_run_mean", ".3f"),
         "<n_m> quiet": _ci(n, "n_m_quiet_run_mean", ".3f"),
         "quiet frames below the line": _ci(n, "quiet_below_run_mean", ".1%"),
