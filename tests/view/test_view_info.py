@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import json
 import tomllib
 
 import h5py
@@ -214,3 +215,39 @@ def test_durations_read_as_hours_minutes_or_seconds():
     assert _duration(12.34) == "12.3 s"
     assert _duration(185) == "3 min 05 s"
     assert _duration(3 * 3600 + 2 * 60 + 59) == "3 h 02 min"
+
+
+def test_an_ensemble_counts_the_recorded_runs_whose_files_are_gone(tiny_ensemble, tmp_path,
+                                                                   capsys):
+    """--records: the runs recorded whose run files are not in the directory (lost with a disk,
+    the ensemble restarted with --skip-recorded) count as finished in the cost and what is
+    left; a run file that is here is not counted twice; records of another configuration, or no
+    records, are refused in one line."""
+    import shutil
+
+    from tiltpile.figures.records import write_record_of
+
+    d = tmp_path / "ens"
+    shutil.copytree(tiny_ensemble, d)
+    rec = tmp_path / "records"
+    for s in (2, 3):
+        write_record_of(d / f"run_{s:04d}.h5", rec)
+    (d / "run_0002.h5").unlink()
+    assert main(["info", str(d), "--quiet"]) == 0
+    assert "  cost     1 finished: " in capsys.readouterr().out
+    assert main(["info", str(d), "--quiet", "--records", str(rec)]) == 0
+    out = capsys.readouterr().out
+    assert (f"  records  {rec}: 1 finished run(s) recorded whose run file is not here (seeds 2)"
+            in out)
+    assert "  cost     2 finished: " in out and "(median of 2 timed whole)" in out
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    assert main(["info", str(d), "--records", str(empty)]) == 2
+    assert "no records (run_*.npz) there" in capsys.readouterr().err
+    man = json.loads((d / "ensemble.json").read_text())
+    (d / "ensemble.json").write_text(json.dumps(dict(man, config_hash="f" * 64)))
+    assert main(["info", str(d), "--records", str(rec)]) == 2
+    err = capsys.readouterr().err
+    assert "is a record of another configuration" in err and len(err.strip().splitlines()) == 1
+    assert main(["info", str(d / "run_0003.h5"), "--records", str(rec)]) == 2
+    assert "is not an ensemble directory" in capsys.readouterr().err

@@ -11,7 +11,10 @@ complete, and its size on disk.
 A directory: one line per run file (``run_*.h5``, and any ``.part`` still being written or
 interrupted, with where its last checkpoint stands: history leg or ramp angle, steps, sweeps and
 wall time so far), then the manifest ``ensemble.json`` (configuration hash, versions, run
-statuses) and what the finished runs cost and the rest will (:func:`cost_lines`).
+statuses) and what the finished runs cost and the rest will (:func:`cost_lines`). With
+``records`` (a directory of ``tiltpile record`` files of the same configuration, e.g. the committed
+ones of an ensemble whose run files were lost), the recorded runs without a run file here count as
+finished too (:func:`recorded_costs`).
 The onsets of a directory come from its observables cache (``tiltpile observables DIR``); they
 are not computed here.
 
@@ -352,7 +355,45 @@ def checkpoint_progress(ckpt: Path, protocol: dict) -> str:
             f"{float(sc.get('sweeps', 0)) / 1e6:.1f} M sweeps{spent}")
 
 
-def dir_info(d) -> str:
+def recorded_costs(records, config_hash: str | None, have: set[int]) -> tuple[list[int], list[dict]]:
+    """(seeds, cost records) of the records in ``records`` whose seed is not in ``have``, sorted
+    by seed. InfoError (one line) for a directory without records, a damaged record or one of
+    another configuration than ``config_hash`` (None: they must agree with each other)."""
+    from tiltpile.record import RecordError, read_meta, record_files
+
+    records = Path(records)
+    files = record_files(records) if records.is_dir() else []
+    if not files:
+        raise InfoError(f"--records {records}: no records (run_*.npz) there")
+    got = {}
+    for path in files:
+        try:
+            meta = read_meta(path)
+        except RecordError as e:
+            raise InfoError(str(e)) from None
+        h = meta.get("config_hash")
+        config_hash = config_hash or h
+        if h != config_hash:
+            raise InfoError(f"{path} is a record of another configuration (hash {str(h)[:12]}, "
+                            f"this ensemble {str(config_hash)[:12]})")
+        if int(meta["seed"]) not in have:
+            got[int(meta["seed"])] = dict(meta.get("cost") or {})
+    seeds = sorted(got)
+    return seeds, [got[s] for s in seeds]
+
+
+def _seed_ranges(seeds: list[int]) -> str:
+    """'0-11, 14' of sorted seeds."""
+    out, start = [], None
+    for i, s in enumerate(seeds):
+        start = s if start is None else start
+        if i + 1 == len(seeds) or seeds[i + 1] != s + 1:
+            out.append(f"{start}" if start == s else f"{start}-{s}")
+            start = None
+    return ", ".join(out)
+
+
+def dir_info(d, records=None) -> str:
     """One line per run of an ensemble directory, then its manifest (module docstring)."""
     from tiltpile.config import ConfigError
     from tiltpile.ensemble import read_manifest
@@ -391,6 +432,13 @@ def dir_info(d) -> str:
                    f"{s['theta_max']:>9.2f} {('-' if n_on is None else n_on):>6} "
                    f"{('-' if math.isnan(first) else f'{first:.2f}'):>6} {warn:>4} "
                    f"{human_size(size):>9}  {'complete' if s['complete'] else 'NOT complete'}")
+    rec_lines = []
+    if records is not None:
+        here = {int(m.group(1)) for p in files if (m := re.match(r"run_(\d+)\.h5$", p.name))}
+        rec_seeds, rec_costs = recorded_costs(records, (man or {}).get("config_hash"), here)
+        costs += rec_costs
+        rec_lines = [f"  records  {records}: {len(rec_seeds)} finished run(s) recorded whose run "
+                     f"file is not here" + (f" (seeds {_seed_ranges(rec_seeds)})" if rec_seeds else "")]
     protocol = ((man or {}).get("config") or {}).get("protocol") or {}
     for p in parts:
         size = p.stat().st_size
@@ -428,15 +476,20 @@ def dir_info(d) -> str:
                    if r.get("status") == "running" and r.get("file")]
         walls = [(_checkpoint_state(c) or ({}, None))[1] for c in running]
         m = re.search(r"(\d+) workers?", str(inv[-1].get("engine", ""))) if inv else None
+        out += rec_lines
         out += cost_lines(costs, counts.get("pending", 0), walls, int(m.group(1)) if m else None)
+    if man is None and rec_lines:
+        out += rec_lines + cost_lines(costs, 0, [], None)
     return "\n".join(out)
 
 
-def info(path, progress: bool = False) -> str:
-    """:func:`run_info` of a file, :func:`dir_info` of a directory."""
+def info(path, progress: bool = False, records=None) -> str:
+    """:func:`run_info` of a file, :func:`dir_info` of a directory (with ``records``, see there)."""
     p = Path(path)
+    if records is not None and not p.is_dir():
+        raise InfoError(f"--records: {p} is not an ensemble directory")
     if p.is_dir():
-        return dir_info(p)
+        return dir_info(p, records=records)
     if not p.exists():
         hint = " (an incomplete .part file exists)" if part_path(p).exists() else ""
         raise InfoError(f"{p}: no such run file or directory{hint}")
