@@ -164,6 +164,25 @@ $(EXECUTED)/.records: FORCE | check-nb
 records: | $(STAMP)
 	$(PY) -m tiltpile record $(DATA) --out $(RECORDS) $(if $(WORKERS),--workers $(WORKERS))
 
+# `make ensemble [PRESET=paper] [DATA=/path/outside/the/checkout] [WORKERS=W]`: only the ensemble,
+# for a computation spread over many sessions (README, "The paper's scale, over many sessions").
+# It runs from a copy of the committed code, DATA-code/COMMIT/src (`git archive`), so that editing
+# the checkout never reaches its workers, and skips the seeds whose record is in RECORDS
+# (--skip-recorded; none there: nothing skipped). Finished runs are skipped and interrupted ones
+# resume from their checkpoints, so the same command starts it anew in every session, e.g.
+# `nohup make ensemble PRESET=paper DATA=/work/runs/paper WORKERS=2 > /work/runs/paper.log 2>&1 &`.
+ENSEMBLE_COMMIT = $(shell git rev-parse --short=12 HEAD 2>/dev/null)
+ENSEMBLE_CODE = $(DATA)-code/$(ENSEMBLE_COMMIT)
+.PHONY: ensemble
+ensemble: | $(STAMP)
+	@test -n "$(RUNS)" || { echo "unknown PRESET=$(PRESET): give RUNS=M"; exit 2; }
+	@test -n "$(ENSEMBLE_COMMIT)" || { echo "make ensemble runs a copy of the committed code: run it in a git checkout"; exit 2; }
+	@test -d $(ENSEMBLE_CODE)/src || { rm -rf $(ENSEMBLE_CODE).tmp && mkdir -p $(ENSEMBLE_CODE).tmp && \
+	  git archive $(ENSEMBLE_COMMIT) src | tar -x -C $(ENSEMBLE_CODE).tmp && mv $(ENSEMBLE_CODE).tmp $(ENSEMBLE_CODE); }
+	NUMBA_CACHE_DIR=$(ENSEMBLE_CODE)/numba-cache PYTHONPATH=$(ENSEMBLE_CODE)/src \
+	  $(PY) -m tiltpile ensemble --preset $(PRESET) --runs $(RUNS) --out $(DATA) $(ENSEMBLE_ARGS) \
+	  $(if $(wildcard $(RECORDS)/run_*.npz),--skip-recorded $(RECORDS)) --quiet
+
 # NB, checked before anything runs: every name must be a parameter of a notebook this invocation
 # executes (those of the figure targets named, the preparation study's, or every figure's). Then
 # per notebook, the parameters of NB it declares, as the YAML file papermill reads (-f), beside the

@@ -311,3 +311,25 @@ def test_each_notebook_gets_the_parameters_it_declares(tree):
                           "--", "-p", "eps", "0.01", "-p", "ke_factor", "3"],
                          capture_output=True, text=True, check=True).stdout
     assert out == "# x\neps: 0.01\n"
+
+
+def test_make_ensemble_runs_a_copy_of_the_committed_code_and_skips_recorded_seeds():
+    """make ensemble: the ensemble alone, from `git archive` of HEAD into DATA-code/COMMIT/src
+    (PYTHONPATH, and a numba cache of its own), skipping the seeds recorded in RECORDS where
+    there are records (the paper's are committed; the smoke preset has none)."""
+    head = subprocess.run(["git", "rev-parse", "--short=12", "HEAD"], cwd=ROOT, capture_output=True,
+                          text=True).stdout.strip()
+    if not head:
+        pytest.skip("not a git checkout")
+    r = subprocess.run(["make", "-n", "ensemble", "PRESET=paper", "DATA=/x/runs/paper", "WORKERS=2"],
+                       cwd=ROOT, capture_output=True, text=True, timeout=120, env=MAKE_ENV)
+    assert r.returncode == 0, r.stderr
+    out = " ".join(r.stdout.replace("\\\n", " ").split())
+    code = f"/x/runs/paper-code/{head}"
+    assert f"git archive {head} src | tar -x -C {code}.tmp && mv {code}.tmp {code}" in out
+    assert (f"NUMBA_CACHE_DIR={code}/numba-cache PYTHONPATH={code}/src" in out
+            and "-m tiltpile ensemble --preset paper --runs 50 --out /x/runs/paper --workers 2 "
+                "--skip-recorded figures/paper/records --quiet" in out)
+    r = subprocess.run(["make", "-n", "ensemble", "PRESET=smoke", "DATA=/x/runs/smoke"], cwd=ROOT,
+                       capture_output=True, text=True, timeout=120, env=MAKE_ENV)
+    assert r.returncode == 0 and "--skip-recorded" not in r.stdout, r.stderr
