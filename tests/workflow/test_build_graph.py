@@ -333,3 +333,46 @@ def test_make_ensemble_runs_a_copy_of_the_committed_code_and_skips_recorded_seed
     r = subprocess.run(["make", "-n", "ensemble", "PRESET=smoke", "DATA=/x/runs/smoke"], cwd=ROOT,
                        capture_output=True, text=True, timeout=120, env=MAKE_ENV)
     assert r.returncode == 0 and "--skip-recorded" not in r.stdout, r.stderr
+
+
+_KERNELS = r"""
+import ctypes, glob, json, os
+import numpy, scipy
+from numpy._core._multiarray_umath import __cpu_dispatch__, __cpu_features__
+blas = {}
+for pkg, sym in ((numpy, "scipy_openblas_get_corename64_"), (scipy, "scipy_openblas_get_corename")):
+    libs = glob.glob(os.path.join(os.path.dirname(os.path.dirname(pkg.__file__)),
+                                  pkg.__name__ + ".libs", "libscipy_openblas*.so"))
+    if libs and hasattr(ctypes.CDLL(libs[0]), sym):
+        f = getattr(ctypes.CDLL(libs[0]), sym)
+        f.restype = ctypes.c_char_p
+        blas[pkg.__name__] = f().decode()
+print(json.dumps({"on": [t for t in __cpu_dispatch__ if __cpu_features__.get(t)], "blas": blas}))
+"""
+
+
+def test_the_analysis_runs_with_avx2_kernels_on_any_x86_machine():
+    """make runs the analysis (observables, records, notebooks, zcount) with numpy's dispatch held
+    at X86_V3 (AVX2) and OpenBLAS's kernels at Haswell, so that an AVX-512 machine computes the
+    same figure JSON, bit for bit, as an AVX2 one (their vectorized exp/log/power and BLAS kernels
+    differ in the last bits)."""
+    import platform
+    import sys
+
+    if platform.machine() != "x86_64":
+        pytest.skip("the AVX2 level is an x86-64 one")
+    env = subprocess.run(["make", "-s", "--eval", "show-env: ; @printf '%s' '$(ANALYSIS_ENV)'", "show-env"],
+                         cwd=ROOT, capture_output=True, text=True, env=MAKE_ENV).stdout.strip()
+    avx2 = "avx2" in Path("/proc/cpuinfo").read_text().split()
+    assert "NPY_DISABLE_CPU_FEATURES=" in env and ("OPENBLAS_CORETYPE=Haswell" in env) == avx2
+    got = json.loads(subprocess.run(f"{env} {sys.executable} -c '{_KERNELS}'", shell=True, cwd=ROOT,
+                                    capture_output=True, text=True, check=True).stdout)
+    assert not set(got["on"]) - {"X86_V3"}, got
+    if avx2:
+        assert set(got["blas"].values()) == {"Haswell"}, got
+    # every analysis recipe carries it: a figure's notebook among them
+    r = subprocess.run(["make", "-n", "-B", "figures/fig2_avalanche_criterion.json", "FROM=records",
+                        "RECORDS=figures/paper/records"], cwd=ROOT, capture_output=True, text=True,
+                       timeout=120, env=MAKE_ENV)
+    line = next(x for x in r.stdout.splitlines() if "-m papermill" in x)
+    assert line.lstrip("@").startswith(env.split("=")[0] + "="), line
