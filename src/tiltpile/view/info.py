@@ -299,13 +299,14 @@ def _checkpoint_state(ckpt: Path) -> tuple[dict, float | None] | None:
 
 
 def cost_lines(costs: list[dict], n_pending: int, running_walls: list[float | None],
-               workers: int | None) -> list[str]:
+               workers: int | None, running_names: list[str] | None = None) -> list[str]:
     """What an ensemble's finished runs cost and what is left, from their cost records
     (``Run.cost``): sweeps per run (mean), wall time per run (median of the runs timed whole,
     :func:`tiltpile.analysis.ensemble_data.ensemble_cost`) and its core-hours; the runs left
     (``n_pending`` not started, one per entry of ``running_walls``, the wall seconds their
     checkpoints have spent, None if unknown) at that median, the running ones less what they have
-    spent, and in hours of wall time on ``workers`` workers. [] without a finished run."""
+    spent, and in hours of wall time on ``workers`` workers; with ``running_names`` (one per
+    running run), what each has to go at that median. [] without a finished run."""
     from tiltpile.analysis.ensemble_data import ensemble_cost
 
     if not costs:
@@ -327,6 +328,10 @@ def cost_lines(costs: list[dict], n_pending: int, running_walls: list[float | No
         wall = f", ~{hours / workers:.3g} h on {workers} worker(s)" if workers else ""
         out.append(f"  left     {left} run(s) ({n_pending} pending, {len(running_walls)} running): "
                    f"~{hours:.3g} core-hours at that median{wall}")
+    if running_names:
+        to_go = [f"{name} ~{max(sec - w, 0.0) / 3600:.1f} h" if w is not None else f"{name} ?"
+                 for name, w in zip(running_names, running_walls)]
+        out.append("  to go    " + ", ".join(to_go) + " (at that median, less the time so far)")
     return out
 
 
@@ -472,12 +477,13 @@ def dir_info(d, records=None) -> str:
         inv = man.get("invocations") or []
         if inv:
             out.append(f"  {len(inv)} invocation(s), last {inv[-1].get('started', '?')}")
-        running = [checkpoint_path(Path(d / r["file"])) for r in runs.values()
+        running = [Path(d / r["file"]) for r in runs.values()
                    if r.get("status") == "running" and r.get("file")]
-        walls = [(_checkpoint_state(c) or ({}, None))[1] for c in running]
+        walls = [(_checkpoint_state(checkpoint_path(p)) or ({}, None))[1] for p in running]
         m = re.search(r"(\d+) workers?", str(inv[-1].get("engine", ""))) if inv else None
         out += rec_lines
-        out += cost_lines(costs, counts.get("pending", 0), walls, int(m.group(1)) if m else None)
+        out += cost_lines(costs, counts.get("pending", 0), walls, int(m.group(1)) if m else None,
+                          [p.name for p in running])
     if man is None and rec_lines:
         out += rec_lines + cost_lines(costs, 0, [], None)
     return "\n".join(out)
