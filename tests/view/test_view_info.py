@@ -255,3 +255,41 @@ def test_an_ensemble_counts_the_recorded_runs_whose_files_are_gone(tiny_ensemble
     assert "is a record of another configuration" in err and len(err.strip().splitlines()) == 1
     assert main(["info", str(d / "run_0003.h5"), "--records", str(rec)]) == 2
     assert "is not an ensemble directory" in capsys.readouterr().err
+
+
+def test_info_of_records_and_of_a_record(tiny_ensemble, tmp_path, capsys):
+    """A directory of records (the committed figures/paper/records/) and one record: what the run
+    recorded, from the record alone: one line per record with its onsets as the recorded frame
+    table has them, the cost of the recorded runs; for one record also how it ended, its health
+    warnings, the run file it came from and its configuration as TOML (the run's hash)."""
+    from tiltpile.figures.records import write_record_of
+    from tiltpile.record import read_record
+
+    rec = tmp_path / "records"
+    for s in (2, 3):
+        write_record_of(tiny_ensemble / f"run_{s:04d}.h5", rec)
+    assert main(["info", str(rec)]) == 0
+    out = capsys.readouterr().out
+    assert out.startswith(f"records    {rec}  (2 record(s), config hash ")
+    for s in (2, 3):
+        f = read_record(rec / f"run_{s:04d}.npz").frames
+        th = f["theta_deg"].to_numpy(float)[f["onset"].to_numpy(bool)]
+        line = next(x for x in out.splitlines() if x.startswith(f"run_{s:04d}.npz"))
+        assert line.split()[1] == str(s) and line.split()[6] == str(th.size), line
+    assert "  cost     2 finished: " in out
+    assert main(["info", str(rec / "run_0003.npz")]) == 0
+    out = capsys.readouterr().out
+    with open_run(tiny_ensemble / "run_0003.h5") as run:
+        hash_, cost, end = run.config_hash, run.cost, run.end_reason
+    assert f"seed       3    tiltpile " in out and f"config hash {hash_[:12]}" in out
+    assert (f"ended      by {'theta_max' if end != 'slide' else 'the slide (protocol.end_ke)'}"
+            in out and f"{cost['steps']} steps, {cost['sweeps']} sweeps" in out)
+    assert "from       run_0003.h5 (" in out and "0 warning(s)" in out
+    cfg_file = tmp_path / "c.toml"
+    cfg_file.write_text(out.split("--out RUN.h5)\n", 1)[1])
+    assert config.load("smoke", cfg_file).hash() == hash_
+    (tmp_path / "bad").mkdir()
+    (tmp_path / "bad" / "run_0000.npz").write_bytes(b"not a record")
+    assert main(["info", str(tmp_path / "bad")]) == 2
+    err = capsys.readouterr().err.strip()
+    assert "run_0000.npz" in err and len(err.splitlines()) == 1
