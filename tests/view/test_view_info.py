@@ -236,6 +236,13 @@ def test_an_ensemble_counts_the_recorded_runs_whose_files_are_gone(tiny_ensemble
     rec = tmp_path / "records"
     for s in (2, 3):
         write_record_of(d / f"run_{s:04d}.h5", rec)
+    assert main(["info", str(d), "--quiet", "--records", str(rec)]) == 0
+    assert "to record" not in capsys.readouterr().out
+    (rec / "run_0003.npz").unlink()
+    assert main(["info", str(d), "--quiet", "--records", str(rec)]) == 0
+    assert (f"  to record run_0003.h5: finished, with no up-to-date record in {rec} (tiltpile "
+            f"record {d} --out {rec}, then commit it)") in capsys.readouterr().out
+    write_record_of(d / "run_0003.h5", rec)
     (d / "run_0002.h5").unlink()
     assert main(["info", str(d), "--quiet"]) == 0
     assert "  cost     1 finished: " in capsys.readouterr().out

@@ -393,6 +393,19 @@ def recorded_costs(records, config_hash: str | None, have: set[int]) -> tuple[li
     return seeds, [got[s] for s in seeds]
 
 
+def _unrecorded_lines(d: Path, records) -> list[str]:
+    """A reminder naming the finished run files of ``d`` without an up-to-date record in
+    ``records`` (a run file is lost with its disk; its record, committed, is not)."""
+    from tiltpile.figures.records import record_status
+
+    st = record_status(d, records)
+    todo = [Path(f).name for f, fresh in zip(st["run_file"], st["fresh"]) if not fresh]
+    if not todo:
+        return []
+    return [f"  to record {', '.join(todo)}: finished, with no up-to-date record in {records} "
+            f"(tiltpile record {d} --out {records}, then commit it)"]
+
+
 def _seed_ranges(seeds: list[int]) -> str:
     """'0-11, 14' of sorted seeds."""
     out, start = [], None
@@ -450,6 +463,7 @@ def dir_info(d, records=None) -> str:
         costs += rec_costs
         rec_lines = [f"  records  {records}: {len(rec_seeds)} finished run(s) recorded whose run "
                      f"file is not here" + (f" (seeds {_seed_ranges(rec_seeds)})" if rec_seeds else "")]
+        rec_lines += _unrecorded_lines(d, records)
     protocol = ((man or {}).get("config") or {}).get("protocol") or {}
     for p in parts:
         size = p.stat().st_size
