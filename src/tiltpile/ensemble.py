@@ -86,6 +86,17 @@ STATUSES = ("pending", "running", "done", "failed")  # of a run in the manifest
 WORKER_ENV = {"NUMBA_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1",
               "OPENBLAS_NUM_THREADS": "1"}
 POLL = 0.25  # [s] between looks at finished futures and start/progress events
+# The LocalCluster's own housekeeping, turned down: a run is one task of hours, so dask's
+# statistical profiler (a stack sample of the busy thread every 10 ms), its event-loop tick
+# (20 ms), system and memory monitors (0.5 s, 0.1 s) and work stealing (the scheduler queues
+# these root tasks, worker-saturation 1.1) cost CPU and buy nothing. With the defaults the
+# client and a worker running a 20 s task spent 2.3 s of CPU on them, with these 0.3 s
+# (python -m tiltpile.bench.dask_overhead; docs/performance-log.md, "dask's housekeeping").
+QUIET_DASK = {"distributed.worker.profile.enabled": False,
+              "distributed.admin.tick.interval": "1s",
+              "distributed.admin.system-monitor.interval": "5s",
+              "distributed.worker.memory.monitor-interval": "1s",
+              "distributed.scheduler.work-stealing": False}
 
 
 def run_file(out_dir: str | Path, seed: int) -> Path:
@@ -392,8 +403,11 @@ def _client(scheduler, workers: int | None, n_tasks: int):
     env = dict(WORKER_ENV)
     if os.environ.get("NUMBA_CACHE_DIR"):
         env["NUMBA_CACHE_DIR"] = os.environ["NUMBA_CACHE_DIR"]
-    with LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
-                      env=env) as cluster, Client(cluster) as client:
+    import dask
+
+    with dask.config.set(QUIET_DASK), \
+            LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
+                         env=env) as cluster, Client(cluster) as client:
         yield client, f"LocalCluster({n} workers)"
 
 

@@ -350,3 +350,29 @@ def test_simulate_reports_progress_to_the_ensemble_callback(tmp_path, small_conf
     tilt = [e.theta_deg for e in events if e.phase == "tilt"]
     assert tilt and tilt[-1] == pytest.approx(small_config.protocol.theta_max_deg)
     assert any(e.phase == "deposit" for e in events)
+
+
+def test_the_local_cluster_runs_without_dask_housekeeping_it_does_not_need():
+    """The LocalCluster's workers and scheduler run with ensemble.QUIET_DASK (no statistical
+    profiler, slow ticks and monitors, no work stealing) and one thread per library; the caller's
+    dask configuration is left as it was."""
+    import dask
+    import distributed  # noqa: F401  (its defaults join dask's configuration on import)
+
+    from tiltpile import ensemble
+
+    def worker_view():
+        import os
+
+        import dask
+        return ({k: dask.config.get(k) for k in ensemble.QUIET_DASK},
+                os.environ.get("NUMBA_NUM_THREADS"))
+
+    before = dask.config.get("distributed.worker.profile.enabled")
+    with ensemble._client(None, 1, 1) as (client, engine):
+        assert engine == "LocalCluster(1 workers)"
+        (got, threads), = client.run(worker_view).values()
+        assert got == ensemble.QUIET_DASK and threads == "1"
+        assert client.run_on_scheduler(
+            lambda: dask.config.get("distributed.scheduler.work-stealing")) is False
+    assert dask.config.get("distributed.worker.profile.enabled") == before

@@ -17,10 +17,12 @@ nothing when imported (``python -m tiltpile.bench`` lists them):
 ``compare_ensembles``  onset, z and n_m of ensembles that differ in one setting
 ``guard``              what a cheaper setting costs against how far it moves the figure numbers
 ``store_filters``      size and time of the run file's checksums and of compression
+``dask_overhead``      the CPU dask's housekeeping takes from an ensemble's runs
 
 Measurement code sits beside the command line: it imports ``config``, ``sim``, ``store`` and
 ``analysis``, never ``figures`` or ``cli`` (``tests/test_layers.py``).
 """
 
 STUDIES = ("pile", "timing", "chart", "solver_micro", "solver_variants", "flow_caps",
-           "precursor_caps", "settle", "coarse", "compare_ensembles", "guard", "store_filters")
+           "precursor_caps", "settle", "coarse", "compare_ensembles", "guard", "store_filters",
+           "dask_overhead")
