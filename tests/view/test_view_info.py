@@ -98,7 +98,7 @@ def test_an_ensemble_says_what_its_runs_cost_and_what_is_left(tiny_ensemble, cap
     out = capsys.readouterr().out
     assert "  cost     2 finished: " in out and "(median of 2 timed whole)" in out
     assert "  left     1 run(s) (0 pending, 1 running)" in out
-    assert "  to go    run_0004.h5 ? (at that median, less the time so far)" in out
+    assert "  to go    run_0004.h5 ? (at its pace so far)" in out
     whole = {"sweeps": 90e6, "seconds": 7200.0, "resumed_from_frame": -1}
     resumed = {"sweeps": 100e6, "seconds": 60.0, "resumed_from_frame": 400}
     lines = cost_lines([whole, dict(whole, seconds=9000.0), resumed], 4, [3600.0, None], 2)
@@ -109,7 +109,12 @@ def test_an_ensemble_says_what_its_runs_cost_and_what_is_left(tiny_ensemble, cap
                         "median, ~6.25 h on 2 worker(s)")
     assert cost_lines([whole, dict(whole, seconds=9000.0)], 0, [3600.0, None], 2,
                       ["run_0012.h5", "run_0013.h5"])[2] == (
-        "  to go    run_0012.h5 ~1.2 h, run_0013.h5 ? (at that median, less the time so far)")
+        "  to go    run_0012.h5 ~1.2 h, run_0013.h5 ? (at its pace so far)")
+    # with its sweeps: the mean's 90 M less its 30 M, at its 30 M per hour (slower than the
+    # finished runs' 45 M per hour): 2 h to go, not the median's 1.25 h
+    assert cost_lines([whole, dict(whole, seconds=9000.0)], 0, [3600.0], 2, ["run_0012.h5"],
+                      [30e6])[2] == (
+        "  to go    run_0012.h5 ~2.0 h (33% of the mean sweeps done) (at its pace so far)")
     assert cost_lines([resumed], 3, [], None) == [
         "  cost     1 finished: 100.0 M sweeps per run (mean), wall time not recorded whole "
         "(resumed runs)"]

@@ -305,14 +305,18 @@ def _checkpoint_state(ckpt: Path) -> tuple[dict, float | None] | None:
 
 
 def cost_lines(costs: list[dict], n_pending: int, running_walls: list[float | None],
-               workers: int | None, running_names: list[str] | None = None) -> list[str]:
+               workers: int | None, running_names: list[str] | None = None,
+               running_sweeps: list[float | None] | None = None) -> list[str]:
     """What an ensemble's finished runs cost and what is left, from their cost records
     (``Run.cost``): sweeps per run (mean), wall time per run (median of the runs timed whole,
     :func:`tiltpile.analysis.ensemble_data.ensemble_cost`) and its core-hours; the runs left
     (``n_pending`` not started, one per entry of ``running_walls``, the wall seconds their
     checkpoints have spent, None if unknown) at that median, the running ones less what they have
     spent, and in hours of wall time on ``workers`` workers; with ``running_names`` (one per
-    running run), what each has to go at that median. [] without a finished run."""
+    running run), what each has to go: the finished runs' mean sweeps less its own at its own
+    pace so far where ``running_sweeps`` gives them (a run on a slower machine, or beside other
+    work, takes longer than the median), else the median less its time so far. [] without a
+    finished run."""
     from tiltpile.analysis.ensemble_data import ensemble_cost
 
     if not costs:
@@ -335,9 +339,18 @@ def cost_lines(costs: list[dict], n_pending: int, running_walls: list[float | No
         out.append(f"  left     {left} run(s) ({n_pending} pending, {len(running_walls)} running): "
                    f"~{hours:.3g} core-hours at that median{wall}")
     if running_names:
-        to_go = [f"{name} ~{max(sec - w, 0.0) / 3600:.1f} h" if w is not None else f"{name} ?"
-                 for name, w in zip(running_names, running_walls)]
-        out.append("  to go    " + ", ".join(to_go) + " (at that median, less the time so far)")
+        mean_sweeps = c["sweeps_per_run"]
+        to_go = []
+        for name, w, sw in zip(running_names, running_walls,
+                               running_sweeps or [None] * len(running_names)):
+            if w is None:
+                to_go.append(f"{name} ?")
+            elif sw and mean_sweeps and w > 0:
+                to_go.append(f"{name} ~{max(mean_sweeps - sw, 0.0) / (sw / w) / 3600:.1f} h "
+                             f"({sw / mean_sweeps:.0%} of the mean sweeps done)")
+            else:
+                to_go.append(f"{name} ~{max(sec - w, 0.0) / 3600:.1f} h")
+        out.append("  to go    " + ", ".join(to_go) + " (at its pace so far)")
     return out
 
 
@@ -499,11 +512,13 @@ def dir_info(d, records=None) -> str:
             out.append(f"  {len(inv)} invocation(s), last {inv[-1].get('started', '?')}")
         running = [Path(d / r["file"]) for r in runs.values()
                    if r.get("status") == "running" and r.get("file")]
-        walls = [(_checkpoint_state(checkpoint_path(p)) or ({}, None))[1] for p in running]
+        states = [_checkpoint_state(checkpoint_path(p)) or ({}, None) for p in running]
+        walls = [w for _, w in states]
+        sweeps = [float(sc["sweeps"]) if "sweeps" in sc else None for sc, _ in states]
         m = re.search(r"(\d+) workers?", str(inv[-1].get("engine", ""))) if inv else None
         out += rec_lines
         out += cost_lines(costs, counts.get("pending", 0), walls, int(m.group(1)) if m else None,
-                          [p.name for p in running])
+                          [p.name for p in running], sweeps)
     if man is None and rec_lines:
         out += rec_lines + cost_lines(costs, 0, [], None)
     return "\n".join(out)
