@@ -122,20 +122,38 @@ def _leads_with_the_paper_scale(found: str, figures: Path, report: Path) -> list
 
 def test_what_we_found_leads_with_the_paper_ensemble_once_it_has_landed():
     """Issue 25: once figures/paper/ holds the cycled paper ensemble's figures, "What we found"
-    leads with them. Checked on the committed figures/paper/ (skipped before it lands) and, so that
-    the check is known to bite, on a synthetic landing that the present README does not lead with."""
+    leads with them and quotes their numbers. Checked on the committed figures/paper/ (skipped
+    before it lands) and, so that the check is known to bite, on synthetic findings: one that
+    leads with a landing, one that names it only in a later bullet, one that misquotes its onset."""
     import tempfile
 
     paper = ROOT / "figures" / "paper"
     if (paper / "fig2_avalanche_criterion.json").exists():
         assert _leads_with_the_paper_scale(FOUND, paper, paper / "REPRODUCTION.md") == []
+        n2 = json.loads((paper / "fig2_avalanche_criterion.json").read_text())["numbers"]
+        n5 = json.loads((paper / "fig5_cluster_sizes.json").read_text())["numbers"]
+        slides = sorted(v for v in n2["theta_avalanche_per_run"] if v is not None)
+        for quoted in (f"delta = {_ci(n5, 'delta_pooled', fmt='.2f')}",
+                       f"<z> = {n2['z_quiet_run_mean']:.3f} against ~3.5",
+                       f"median {statistics.median(slides):.1f} deg ({slides[0]:.2f}-{slides[-1]:.2f})"):
+            assert quoted in FOUND, quoted
         # and no page still says the paper scale waits (docs/figures.md's tables, the README)
         for page in (ROOT / "README.md", ROOT / "docs" / "figures.md"):
             text = " ".join(page.read_text().split())
             assert "| not yet run |" not in text and "is being computed" not in text, page
+    fig2 = json.loads((SCALES["default"][0] / "fig2_avalanche_criterion.json").read_text())
+    report = SCALES["default"][1]
+    agree = _paper_verdicts("default").count("agrees")
+    first = _ci(fig2["numbers"], "theta_m", "theta_m_mean")
+    leads = (f"At the paper's scale, 16 piles of 4000 grains, {agree} of its 18 claims agree. "
+             f"- **Agree.** The first onset comes at {first} deg.")
+    buried = (f"At 1000 grains 6 piles. - **Paper.** 16 piles of 4000 grains, {agree} of its 18 "
+              f"claims agree, the first onset at {first} deg.")
     with tempfile.TemporaryDirectory() as tmp:
         d = Path(tmp)
-        fig2 = json.loads((SCALES["default"][0] / "fig2_avalanche_criterion.json").read_text())
         (d / "fig2_avalanche_criterion.json").write_text(json.dumps(dict(fig2, n_runs=16)))
-        missing = _leads_with_the_paper_scale(FOUND, d, SCALES["default"][1])
-    assert missing == ["opening names the piles"], missing
+        assert _leads_with_the_paper_scale(leads, d, report) == []
+        assert _leads_with_the_paper_scale(buried, d, report) == ["opening names the piles",
+                                                                  "opening gives the verdicts"]
+        assert (_leads_with_the_paper_scale(leads.replace(first, "0.0 [0.0, 0.0]"), d, report)
+                == [f"the first onset {first} deg"])
