@@ -175,6 +175,12 @@ def test_fig6_minimum_below_the_single_grain_bound_disagrees(tmp_path):
                n_clusters_unstable=1310, frac_clusters_unstable=0.012)
     v, text = _verdicts(tmp_path, [_doc("fig6_cluster_stability", six)])
     assert v["dz_min"] == "agrees" and "1310 clusters" in text
+    assert "levels off" not in _note(text, "dz_shift")          # no class of 8 grains or more
+    # the note gives where the rise levels off (the classes from 8 grains up), at every scale
+    six["classes"].update({"2-3": {"dz_mean": -0.3}, "8-15": {"dz_mean": -0.114},
+                           "16+": {"dz_mean": -0.116}})
+    _, text = _verdicts(tmp_path, [_doc("fig6_cluster_stability", six)])
+    assert "from 8 grains up it levels off: -0.11 (s = 8-15), -0.12 (s >= 16);" in _note(text, "dz_shift")
 
 
 def test_crossing_uses_the_interval_over_runs(tmp_path):
