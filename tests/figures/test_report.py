@@ -181,6 +181,9 @@ def test_fig6_minimum_below_the_single_grain_bound_disagrees(tmp_path):
                            "16+": {"dz_mean": -0.116}})
     _, text = _verdicts(tmp_path, [_doc("fig6_cluster_stability", six)])
     assert "from 8 grains up it levels off: -0.11 (s = 8-15), -0.12 (s >= 16);" in _note(text, "dz_shift")
+    six["classes"]["16+"]["dz_mean"] = 0.2                      # still rising: not called level
+    _, text = _verdicts(tmp_path, [_doc("fig6_cluster_stability", six)])
+    assert "from 8 grains up -0.11 (s = 8-15), +0.20 (s >= 16);" in _note(text, "dz_shift")
 
 
 def test_crossing_uses_the_interval_over_runs(tmp_path):

@@ -295,15 +295,18 @@ def _dz_shift(n: dict):
             f"{_f(mean_big, '.2f')} (s >= {big.get('size_lo')}), "
             f"{_f(slope, '+.2f')} per decade of size")
     ok = slope > 0 and mean_big > 0
-    # the size classes from 8 grains up ("8-15", "16+"): where the rise levels off, if it does
+    # the size classes from 8 grains up ("8-15", "16+"), said to level off when their means lie
+    # within 0.05 of each other
     big_classes = [(k, _num(c.get("dz_mean"))) for k, c in cls.items()
-                   if k != "1" and int(k.split("-")[0].rstrip("+")) >= 8]
+                   if int(k.split("-")[0].rstrip("+")) >= 8]
+    means = [m for _, m in big_classes]
+    flat = len(means) > 1 and max(means) - min(means) < 0.05
     plateau = ", ".join(f"{_f(m, '+.2f')} (s {'>= ' + k[:-1] if k.endswith('+') else '= ' + k})"
                         for k, m in big_classes)
     note = "" if ok or not math.isfinite(mean_big) else (
         "our mean delta z rises with size but stays below the global line (negative) for the "
         "largest clusters we have"
-        + (f"; from 8 grains up it levels off: {plateau}" if plateau else "")
+        + (f"; from 8 grains up {'it levels off: ' if flat else ''}{plateau}" if plateau else "")
         + "; the paper's distributions end slightly positive.")
     return ours, _verdict(ok, math.isfinite(slope) and math.isfinite(mean_big)), note
 
