@@ -18,6 +18,10 @@ $(STAMP): environment.txt pyproject.toml
 	$(PY) -m pip install -q -r environment.txt
 	$(PY) -m pip install -q --no-deps -e .
 	$(PY) -m ipykernel install --sys-prefix --name tiltpile --display-name "tiltpile" > /dev/null
+	@# The kernel logs errors only: ipykernel >= 7.3 warns at every start that its loopback TCP
+	@# sockets are unencrypted, a line per notebook that papermill's CLI cannot turn off.
+	$(PY) -c "import json, pathlib; p = pathlib.Path('$(VENV)/share/jupyter/kernels/tiltpile/kernel.json'); \
+	  k = json.loads(p.read_text()); k['argv'].append('--IPKernelApp.log_level=ERROR'); p.write_text(json.dumps(k, indent=1))"
 	touch $@
 
 test: setup
