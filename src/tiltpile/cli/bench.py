@@ -13,7 +13,7 @@ def add_parser(sub) -> None:
     add_config_args(b, default_preset="paper-fresh")
     b.add_argument("--n", type=int, default=4000, help="mobile grains (box length scales with n)")
     b.add_argument("--steps", type=int, default=200, help="steps to time")
-    b.add_argument("--seed", type=seed, default=0)
+    b.add_argument("--seed", type=seed, default=0, help="seed of the settled pile to time (cached in data/bench/)")
     b.add_argument("--json", action="store_true", help="print one JSON object")
     b.add_argument("--chart", type=Path, metavar="DIR",
                    help="measure the speed x accuracy chart instead (tolerance and time-step sweep, "

@@ -13,7 +13,8 @@ INTERRUPTED = "interrupted; an unfinished run file stays as NAME.h5.part and res
 def add_parser(sub) -> None:
     s = sub.add_parser("simulate", help="deposit and tilt one pile into a run file")
     add_config_args(s)
-    s.add_argument("--seed", type=seed, required=True)
+    s.add_argument("--seed", type=seed, required=True,
+                   help="the pile's seed (deposition and every random draw): same config and seed, same bits")
     s.add_argument("--out", required=True, help="run file to write (NAME.h5; NAME.h5.part while running)")
     s.add_argument("--force", action="store_true",
                    help="replace an existing complete run file (only once the new run is complete)")
