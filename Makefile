@@ -7,7 +7,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.tiltpile-installed
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.venv/numba-cache
 
-.PHONY: setup test test-fast figures bench clean-data FORCE
+.PHONY: setup test test-fast figures reports bench clean-data FORCE
 .SECONDEXPANSION:
 
 setup: $(STAMP)
@@ -245,6 +245,15 @@ REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparati
 $(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli/report.py src/tiltpile/__init__.py \
            | $(STAMP)
 	$(PY) -m tiltpile report --figures $(FIGURES) --out $@
+
+# `make reports`: every committed report rewritten from the committed figures' JSON, nothing run
+# or executed (a few seconds). Each report's per-scale tables read every scale's JSON, so after the
+# figures of one scale change, all five change (tests/figures/test_report.py checks they agree).
+REPORT_SCALES := smoke default-fresh paper paper-fresh
+reports: | $(STAMP)
+	$(PY) -m tiltpile report --figures figures --out paper/REPRODUCTION.md
+	@set -e; for s in $(REPORT_SCALES); do \
+	  $(PY) -m tiltpile report --figures figures/$$s --out figures/$$s/REPRODUCTION.md; done
 
 $(EXECUTED)/diagnostics/.executed: notebooks/run_diagnostics.ipynb $(DATA)/.runs | $(STAMP)
 	@mkdir -p $(EXECUTED) $(@D)

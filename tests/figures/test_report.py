@@ -426,3 +426,22 @@ def test_the_scale_table_gives_many_angles_as_a_range_and_their_median(tmp_path)
     text = report.write_report(tmp_path, tmp_path / "R.md").read_text()
     row = _row(text, "avalanche angle: first large slide (deg)")
     assert "10 of 11 runs: 20.0-22.2, median 21.1; tilts end >= 22" in row
+
+
+COMMITTED_REPORTS = [("figures", "paper/REPRODUCTION.md")] + [
+    (f"figures/{scale}", f"figures/{scale}/REPRODUCTION.md")
+    for scale in ("smoke", "default-fresh", "paper", "paper-fresh")]
+
+
+@pytest.mark.parametrize("figures, committed", COMMITTED_REPORTS, ids=[c for _, c in COMMITTED_REPORTS])
+def test_each_committed_report_is_what_its_committed_json_gives(figures, committed, tmp_path, monkeypatch):
+    """A report is never edited by hand nor left behind its figures: rewritten from the committed
+    JSON (`make reports` does it for all five), it is the committed file, byte for byte. Figures of
+    one scale move the others' per-scale tables, so a landing that forgets one fails here."""
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[2]
+    monkeypatch.chdir(root)
+    out = tmp_path / "REPRODUCTION.md"
+    report.write_report(figures, str(out))
+    assert out.read_text() == (root / committed).read_text(), f"{committed} is stale: run `make reports`"
