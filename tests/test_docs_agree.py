@@ -157,3 +157,21 @@ def test_what_we_found_leads_with_the_paper_ensemble_once_it_has_landed():
                                                                   "opening gives the verdicts"]
         assert (_leads_with_the_paper_scale(leads.replace(first, "0.0 [0.0, 0.0]"), d, report)
                 == [f"the first onset {first} deg"])
+
+
+def test_the_figures_page_names_the_committed_paper_ensembles():
+    """docs/figures.md's tables give the paper scales' columns by hand: each header's "4000 x N"
+    is the number of runs behind the committed figures/paper*/ JSON, and the onset row quotes
+    their first 2% onset as the JSON does (a landing of more runs fails here until the page
+    follows)."""
+    import re
+
+    text = (ROOT / "docs" / "figures.md").read_text()
+    for scale in ("paper", "paper-fresh"):
+        doc = json.loads((ROOT / "figures" / scale / "fig2_avalanche_criterion.json").read_text())
+        counts = re.findall(rf"\| {scale} \(4000 x (\d+)", text)
+        assert counts, f"docs/figures.md has no {scale} column"
+        assert set(counts) == {str(doc["n_runs"])}, (scale, counts, doc["n_runs"])
+        onset_row = next(line for line in text.splitlines() if line.startswith("| first 2% onset"))
+        first = _ci(doc["numbers"], "theta_m", "theta_m_mean")
+        assert f"| {first} (range" in onset_row, (scale, first)
