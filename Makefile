@@ -237,7 +237,8 @@ $(FIG_JSON): $(FIGURES)/%.json: notebooks/%.ipynb src/tiltpile/figures/$$(call f
 # (its table of scales), every figure's JSON of the compared scales (default, default-fresh, paper,
 # paper-fresh: every claim at every scale) and the preparation and <z> studies of the default
 # scale's directory.
-REPORT_ROOT := $(if $(filter smoke default-fresh paper paper-fresh,$(notdir $(FIGURES))),$(patsubst %/,%,$(dir $(FIGURES))),$(FIGURES))
+REPORT_SCALES := smoke default-fresh paper paper-fresh
+REPORT_ROOT := $(if $(filter $(REPORT_SCALES),$(notdir $(FIGURES))),$(patsubst %/,%,$(dir $(FIGURES))),$(FIGURES))
 REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparation.json \
                   $(REPORT_ROOT)/smoke/fig2_avalanche_criterion.json \
                   $(foreach s,/ /default-fresh/ /paper/ /paper-fresh/,$(REPORT_ROOT)$(s)fig*.json) \
@@ -249,7 +250,6 @@ $(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli
 # `make reports`: every committed report rewritten from the committed figures' JSON, nothing run
 # or executed (a few seconds). Each report's per-scale tables read every scale's JSON, so after the
 # figures of one scale change, all five change (tests/figures/test_report.py checks they agree).
-REPORT_SCALES := smoke default-fresh paper paper-fresh
 reports: | $(STAMP)
 	$(PY) -m tiltpile report --figures figures --out paper/REPRODUCTION.md
 	@set -e; for s in $(REPORT_SCALES); do \
