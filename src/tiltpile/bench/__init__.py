@@ -18,6 +18,7 @@ nothing when imported (``python -m tiltpile.bench`` lists them):
 ``guard``              what a cheaper setting costs against how far it moves the figure numbers
 ``store_filters``      size and time of the run file's checksums and of compression
 ``dask_overhead``      the CPU dask's housekeeping takes from an ensemble's runs
+``ke_threshold``       how Fig. 2a's kinetic-energy threshold moves as runs are added or left out
 
 Measurement code sits beside the command line: it imports ``config``, ``sim``, ``store`` and
 ``analysis``, never ``figures`` or ``cli`` (``tests/test_layers.py``).
@@ -25,4 +26,4 @@ Measurement code sits beside the command line: it imports ``config``, ``sim``, `
 
 STUDIES = ("pile", "timing", "chart", "solver_micro", "solver_variants", "flow_caps",
            "precursor_caps", "settle", "coarse", "compare_ensembles", "guard", "store_filters",
-           "dask_overhead")
+           "dask_overhead", "ke_threshold")
