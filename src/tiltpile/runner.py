@@ -99,7 +99,7 @@ def _simulate(config, seed, out, progress, resume, position, on_progress) -> dic
         report = health.summarize(writer.frame_columns(health.COLUMNS), writer.deposition_attrs(),
                                   config, writer.n_mobile)
         writer.write_health(report)
-        writer.write_timing(time.perf_counter() - t0, start_frame if resumed is not None else None)
+        writer.write_timing(t0, start_frame if resumed is not None else None)
         path = writer.finish()
     except protocol.SimulationError as e:
         writer.close()

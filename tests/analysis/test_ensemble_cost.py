@@ -26,6 +26,28 @@ def test_ensemble_cost_known_answer():
     assert c["runs_timed"] == 3 and c["seconds_per_run"] == 9.0
 
 
+def test_a_delay_at_the_end_cannot_put_the_summed_wall_time_above_the_invocations(tmp_path, monkeypatch):
+    """A run of one invocation: its summed wall time starts when the writer opens the file, after
+    the invocation's own clock, so it is at most the invocation's seconds, however long the
+    process waits between clock readings. Forced here: every reading of the writer's clock comes
+    10 s after the one before. When the end read it twice (once for each number), a 2.9 s run
+    had a sum of 32.9 s here, and on a loaded machine a sum 7 ms above its seconds."""
+    import time as real_time
+    from types import SimpleNamespace
+
+    from tiltpile.store import writer as writer_module
+
+    delay = iter(range(0, 10**6, 10))
+    monkeypatch.setattr(writer_module, "time",
+                        SimpleNamespace(perf_counter=lambda: real_time.perf_counter() + next(delay)))
+    cfg = config.load("smoke", overrides=["scene.n=60", "scene.box_length=10.0", "protocol.theta_max_deg=1.0"])
+    simulate(cfg, 4, tmp_path / "run_0004.h5", progress=False)
+    with open_run(tmp_path / "run_0004.h5") as run:
+        cost = run.cost
+    assert cost["wall_seconds_whole"] and 0 < cost["wall_seconds"] <= cost["seconds"]
+    assert cost["seconds"] >= 10.0                      # the writer's clock did jump
+
+
 class _Killed(BaseException):
     """Stands for the process being ended (not an Exception: nothing may catch it)."""
 

@@ -138,20 +138,24 @@ class RunWriter:
         invocations up to their last checkpoints (``whole``: all of them were counted)."""
         self._wall_before, self._wall_whole, self._wall_t0 = float(before), bool(whole), time.perf_counter()
 
-    def wall_seconds(self) -> float:
-        """The run's wall time so far: the earlier invocations' up to their last checkpoints
-        (the work an interruption loses is done again, and counted, by the next one) plus this
-        invocation's."""
-        return self._wall_before + (time.perf_counter() - self._wall_t0)
+    def wall_seconds(self, now: float | None = None) -> float:
+        """The run's wall time at ``now`` (``time.perf_counter()``; None: this moment): the
+        earlier invocations' up to their last checkpoints (the work an interruption loses is done
+        again, and counted, by the next one) plus this invocation's."""
+        return self._wall_before + ((time.perf_counter() if now is None else now) - self._wall_t0)
 
-    def write_timing(self, seconds: float, resumed_from_frame: int | None) -> None:
-        """Wall seconds of the invocation that finished the run (root attr ``seconds``), the frame
-        it resumed from if it resumed an interrupted one (``resumed_from_frame``, else -1), and the
-        run's wall time summed over its invocations (``wall_seconds``; ``wall_seconds_whole``
-        false when an invocation before this accounting existed went uncounted)."""
-        self.f.attrs.update(seconds=float(seconds),
+    def write_timing(self, t0: float, resumed_from_frame: int | None) -> None:
+        """Wall seconds of the invocation that finished the run since ``t0`` (its
+        ``time.perf_counter()`` at the start; root attr ``seconds``), the frame it resumed from if
+        it resumed an interrupted one (``resumed_from_frame``, else -1), and the run's wall time
+        summed over its invocations (``wall_seconds``; ``wall_seconds_whole`` false when an
+        invocation before this accounting existed went uncounted). Both are read off one clock
+        reading, so a run of one invocation, whose writer starts its clock after ``t0``, never
+        has a sum above its ``seconds``."""
+        now = time.perf_counter()
+        self.f.attrs.update(seconds=float(now - t0),
                             resumed_from_frame=-1 if resumed_from_frame is None else int(resumed_from_frame),
-                            wall_seconds=float(self.wall_seconds()),
+                            wall_seconds=float(self.wall_seconds(now)),
                             wall_seconds_whole=bool(self._wall_whole))
 
     def frame_columns(self, names) -> dict:
