@@ -54,6 +54,9 @@ test-fast: setup
 # is run as above and, if the directory RECORDS exists, its records are brought up to date with
 # the run files (new or changed runs) before the figures are built from the run files.
 # FROM=records always builds from RECORDS, FROM=runs always from the ensemble.
+# From the records, RUNS=M takes the first M of them by seed (all of them when there are no more):
+# `make figures PRESET=paper RUNS=16` rebuilds figures of the first 16 runs while later runs'
+# records are committed beside them. The notebooks then read EXECUTED/records-M/, links to those.
 # `make records [PRESET=P] [DATA=/path/to/runs] [WORKERS=W]` writes RECORDS from the finished run
 # files of DATA (records up to date are skipped), running nothing else.
 PRESET ?= default
@@ -108,7 +111,14 @@ $(error FROM=$(FROM): give FROM=auto, FROM=runs or FROM=records)
 endif
 # what the notebooks read (data_dir) and the target that stands for it
 ifeq ($(FROM_RECORDS),yes)
-FIG_DATA := $(RECORDS)
+ALL_RECORDS := $(sort $(wildcard $(RECORDS)/run_*.npz))
+ifneq ($(strip $(RUNS)),)
+ifneq ($(shell test "$(RUNS)" -ge 1 2> /dev/null && echo y),y)
+$(error RUNS=$(RUNS): give the number of runs, a whole number >= 1)
+endif
+endif
+USED_RECORDS := $(if $(strip $(RUNS)),$(wordlist 1,$(RUNS),$(ALL_RECORDS)),$(ALL_RECORDS))
+FIG_DATA := $(if $(filter-out $(words $(ALL_RECORDS)),$(words $(USED_RECORDS))),$(EXECUTED)/records-$(RUNS),$(RECORDS))
 FIG_INPUT := $(EXECUTED)/.records
 else
 FIG_DATA := $(DATA)
@@ -166,14 +176,20 @@ endif
 	  --quiet $(if $(WORKERS),--workers $(WORKERS)) | tail -1; fi
 	@stat -L -c '%n %s %Y' $(DATA)/run_*.h5 > $@.tmp; $(call update_if_changed,$@)
 
-# The records instead of the runs (FROM_RECORDS): always checked; the stamp lists every record's
-# SHA-256 and changes only when a record does.
+# The records instead of the runs (FROM_RECORDS): always checked; the stamp lists the SHA-256 of
+# every record used and changes only when one of them does. With fewer records used than there
+# are (RUNS), FIG_DATA is made anew: links to the records used.
 $(EXECUTED)/.records: FORCE | check-nb
 	@mkdir -p $(@D)
 	@ls $(RECORDS)/run_*.npz > /dev/null 2>&1 || { echo "no records run_*.npz in $(RECORDS): write them with \
 	  'make records PRESET=$(PRESET) DATA=/path/to/runs'"; exit 2; }
-	@echo "figures from the records in $(RECORDS) ($(words $(wildcard $(RECORDS)/run_*.npz)) runs; no ensemble is run)"
-	@(cd $(RECORDS) && sha256sum run_*.npz) > $@.tmp; $(call update_if_changed,$@)
+ifeq ($(FIG_DATA),$(RECORDS))
+	@echo "figures from the records in $(RECORDS) ($(words $(ALL_RECORDS)) runs; no ensemble is run)"
+else
+	@echo "figures from the first $(RUNS) of the $(words $(ALL_RECORDS)) records in $(RECORDS) (RUNS=$(RUNS); no ensemble is run)"
+	@rm -rf $(FIG_DATA) && mkdir -p $(FIG_DATA) && ln -s $(abspath $(USED_RECORDS)) $(FIG_DATA)/
+endif
+	@(cd $(RECORDS) && sha256sum $(notdir $(USED_RECORDS))) > $@.tmp; $(call update_if_changed,$@)
 
 .PHONY: records
 records: | $(STAMP)

@@ -276,7 +276,7 @@ def test_make_builds_from_records_when_there_are_no_run_files(tmp_path):
               f"REPORT={tmp_path}/figs/REPRODUCTION.md", "PRESET=paper"]
     plan = _make_n(f"DATA={empty}", *common)
     assert "tiltpile ensemble" not in plan and "run_diagnostics" not in plan
-    assert f"-p data_dir {recs} " in plan and "sha256sum run_*.npz" in plan
+    assert f"-p data_dir {recs} " in plan and "sha256sum run_0000.npz)" in plan
     # with run files: the ensemble as before, then the existing records brought up to date
     (empty / "run_0000.h5").write_bytes(b"")
     plan = _make_n(f"DATA={empty}", *common)
@@ -284,3 +284,50 @@ def test_make_builds_from_records_when_there_are_no_run_files(tmp_path):
     assert f"tiltpile record {empty} --out {recs}" in plan
     plan = _make_n(f"DATA={empty}", "FROM=records", *common)
     assert "tiltpile ensemble" not in plan and f"-p data_dir {recs} " in plan
+
+
+def test_runs_takes_the_first_records_by_seed(tmp_path):
+    """RUNS=M from records: the notebooks read links to the first M records by seed (the committed
+    figures of an earlier stage, while later records sit beside them), the stamp hashes those
+    alone; M at or above the number of records reads the directory itself; a RUNS that is not a
+    whole number >= 1 stops make in one line, before anything runs."""
+    recs, empty = tmp_path / "records", tmp_path / "runs"
+    recs.mkdir()
+    empty.mkdir()
+    for seed in (3, 0, 12, 1):
+        (recs / f"run_{seed:04d}.npz").write_bytes(bytes([seed]))
+    ex = tmp_path / "executed"
+    common = [f"RECORDS={recs}", f"FIGURES={tmp_path}/figs", f"EXECUTED={ex}", f"DATA={empty}",
+              f"REPORT={tmp_path}/figs/REPRODUCTION.md", "PRESET=paper"]
+    plan = _make_n("RUNS=4", *common)
+    assert f"-p data_dir {recs} " in plan and "records-" not in plan
+    plan = _make_n("RUNS=2", *common)
+    assert f"-p data_dir {ex}/records-2 " in plan and f"-p data_dir {recs} " not in plan
+    assert "first 2 of the 4 records" in plan
+    # the stamp target itself, run: the links and the stamp name run_0000 and run_0001 alone
+    r = subprocess.run(["make", f"{ex}/.records", "RUNS=2", *common], cwd=ROOT,
+                       capture_output=True, text=True, timeout=60)
+    assert r.returncode == 0, r.stderr
+    links = sorted((ex / "records-2").iterdir())
+    assert [p.name for p in links] == ["run_0000.npz", "run_0001.npz"]
+    assert [p.resolve() for p in links] == [recs.resolve() / f"run_000{i}.npz" for i in (0, 1)]
+    assert [line.split()[1] for line in (ex / ".records").read_text().splitlines()] == \
+        ["run_0000.npz", "run_0001.npz"]
+    for bad in ("0", "two", "1.5"):
+        r = subprocess.run(["make", "-n", "figures", f"RUNS={bad}", *common], cwd=ROOT,
+                           capture_output=True, text=True, timeout=60)
+        assert r.returncode != 0 and not r.stdout
+        assert f"RUNS={bad}: give the number of runs, a whole number >= 1" in r.stderr
+
+
+@pytest.mark.parametrize("preset", ["paper", "paper-fresh"])
+def test_committed_figures_are_those_of_the_first_records(preset):
+    """Each committed figure of a recorded preset is made of the first n_runs records by seed, so
+    that `make figures PRESET=P RUNS=n_runs` rebuilds it from the committed records while records
+    of later runs sit beside them."""
+    recorded = [int(p.stem.split("_")[1]) for p in record_files(ROOT / "figures" / preset / "records")]
+    jsons = sorted((ROOT / "figures" / preset).glob("fig*.json"))
+    assert recorded and jsons
+    for path in jsons:
+        doc = json.loads(path.read_text())
+        assert doc["seeds"] == recorded[: doc["n_runs"]], path.name
