@@ -15,6 +15,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 import pytest
+from makehelpers import MAKE_ENV
 
 from tiltpile.figures import data, fig1, fig2, fig3, fig4, fig5, fig6, fig7, snapshot, style
 from tiltpile.figures.records import (DROPPED_CLUSTER_COLUMNS, picture_frames, write_record_of,
@@ -260,9 +261,10 @@ def test_picture_frames_are_the_figures_choices_with_their_successors():
     assert picture_frames(g, 4) == [5, 6, 9]
 
 
+
 def _make_n(*args) -> str:
     r = subprocess.run(["make", "-n", "figures", *args], cwd=ROOT, capture_output=True, text=True,
-                       timeout=60)
+                       timeout=60, env=MAKE_ENV)
     assert r.returncode == 0, r.stderr
     return r.stdout
 
@@ -306,7 +308,7 @@ def test_runs_takes_the_first_records_by_seed(tmp_path):
     assert "first 2 of the 4 records" in plan
     # the stamp target itself, run: the links and the stamp name run_0000 and run_0001 alone
     r = subprocess.run(["make", f"{ex}/.records", "RUNS=2", *common], cwd=ROOT,
-                       capture_output=True, text=True, timeout=60)
+                       capture_output=True, text=True, timeout=60, env=MAKE_ENV)
     assert r.returncode == 0, r.stderr
     links = sorted((ex / "records-2").iterdir())
     assert [p.name for p in links] == ["run_0000.npz", "run_0001.npz"]
@@ -315,7 +317,7 @@ def test_runs_takes_the_first_records_by_seed(tmp_path):
         ["run_0000.npz", "run_0001.npz"]
     for bad in ("0", "two", "1.5"):
         r = subprocess.run(["make", "-n", "figures", f"RUNS={bad}", *common], cwd=ROOT,
-                           capture_output=True, text=True, timeout=60)
+                           capture_output=True, text=True, timeout=60, env=MAKE_ENV)
         assert r.returncode != 0 and not r.stdout
         assert f"RUNS={bad}: give the number of runs, a whole number >= 1" in r.stderr
 

@@ -28,11 +28,7 @@ from pathlib import Path
 
 import nbformat
 import pytest
-
-# make as a user types it: the suite itself runs under `make test`, whose MAKELEVEL and MAKEFLAGS
-# would make these makes print "Entering directory" lines and inherit its flags
-MAKE_ENV = {k: v for k, v in os.environ.items()
-            if k not in ("MAKELEVEL", "MAKEFLAGS", "MFLAGS", "MAKEOVERRIDES")}
+from makehelpers import MAKE_ENV
 
 ROOT = Path(__file__).resolve().parents[2]
 SRC = ROOT / "src"
