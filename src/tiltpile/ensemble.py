@@ -408,7 +408,28 @@ def _client(scheduler, workers: int | None, n_tasks: int):
     with dask.config.set(QUIET_DASK), \
             LocalCluster(n_workers=n, threads_per_worker=1, processes=True, dashboard_address=None,
                          env=env) as cluster, Client(cluster) as client:
-        yield client, f"LocalCluster({n} workers)"
+        try:
+            yield client, f"LocalCluster({n} workers)"
+        finally:
+            _quiet_teardown(client)
+
+
+def _quiet_teardown(client) -> None:
+    """Silence dask's loggers in our LocalCluster's worker processes before it is closed. A
+    worker's heartbeat can meet the scheduler's closed connection while the cluster shuts down;
+    dask then logs an error with a traceback to the ensemble's stderr (seen once, under load, in
+    tests/workflow/test_faults.py), after every run's result is in. Best effort: a worker that is
+    gone already has nothing to say."""
+    with contextlib.suppress(Exception):
+        client.run(_silence_dask_logs)
+
+
+def _silence_dask_logs() -> None:
+    import logging
+
+    names = ["distributed"] + [k for k in logging.root.manager.loggerDict if k.startswith("distributed.")]
+    for name in names:
+        logging.getLogger(name).setLevel(logging.CRITICAL)
 
 
 def run_ensemble(config: Config, seeds, out_dir: str | Path, *, scheduler=None, workers: int | None = None,

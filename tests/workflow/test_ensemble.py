@@ -376,3 +376,28 @@ def test_the_local_cluster_runs_without_dask_housekeeping_it_does_not_need():
         assert client.run_on_scheduler(
             lambda: dask.config.get("distributed.scheduler.work-stealing")) is False
     assert dask.config.get("distributed.worker.profile.enabled") == before
+
+
+def test_the_local_cluster_silences_its_workers_dask_logs_before_it_closes(monkeypatch):
+    """A worker's heartbeat meeting the closing scheduler logged an error with a traceback to
+    the ensemble's stderr after every result was in (tests/workflow/test_faults.py failed on it
+    once, under load): the LocalCluster's workers are silenced on the way out, and only then."""
+    import logging
+
+    from tiltpile import ensemble
+
+    def level():
+        return logging.getLogger("distributed.worker").getEffectiveLevel()
+
+    seen = []
+    real = ensemble._quiet_teardown
+
+    def spy(client):
+        real(client)
+        seen.extend(client.run(level).values())
+
+    monkeypatch.setattr(ensemble, "_quiet_teardown", spy)
+    with ensemble._client(None, 1, 1) as (client, _):
+        during = list(client.run(level).values())
+    assert during and all(v < logging.CRITICAL for v in during)
+    assert seen == [logging.CRITICAL]
