@@ -118,7 +118,11 @@ $(error RUNS=$(RUNS): give the number of runs, a whole number >= 1)
 endif
 endif
 USED_RECORDS := $(if $(strip $(RUNS)),$(wordlist 1,$(RUNS),$(ALL_RECORDS)),$(ALL_RECORDS))
-FIG_DATA := $(if $(filter-out $(words $(ALL_RECORDS)),$(words $(USED_RECORDS))),$(EXECUTED)/records-$(RUNS),$(RECORDS))
+ifeq ($(words $(USED_RECORDS)),$(words $(ALL_RECORDS)))
+FIG_DATA := $(RECORDS)
+else
+FIG_DATA := $(EXECUTED)/records-$(RUNS)
+endif
 FIG_INPUT := $(EXECUTED)/.records
 else
 FIG_DATA := $(DATA)

@@ -261,7 +261,6 @@ def test_picture_frames_are_the_figures_choices_with_their_successors():
     assert picture_frames(g, 4) == [5, 6, 9]
 
 
-
 def _make_n(*args) -> str:
     r = subprocess.run(["make", "-n", "figures", *args], cwd=ROOT, capture_output=True, text=True,
                        timeout=60, env=MAKE_ENV)
