@@ -17,7 +17,8 @@ Manifest (``ensemble.json``, rewritten atomically -- temporary file, then ``os.r
 client as runs start and finish): ``config`` (the validated configuration), ``config_hash``,
 ``seeds``, ``runs`` keyed by seed (``file``, ``status`` pending | running | done | failed,
 ``error`` and ``traceback`` of a failure, ``attempts``, ``started``/``finished`` (UTC, ISO 8601),
-``seconds``, ``worker``, ``resumed_from_frame``, ``cap_hits``/``missed``/``max_overlap`` and the
+``seconds``, ``worker``, ``resumed_from_frame``, ``discarded`` (why a ``.part`` found was not
+resumed), ``cap_hits``/``missed``/``max_overlap`` and the
 run's ``health`` summary with its ``warnings`` (``tiltpile.health``), ``numba_cache_misses``),
 ``tiltpile_version`` and library ``versions``, and one entry per invocation in ``invocations``.
 

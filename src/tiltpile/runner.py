@@ -9,7 +9,8 @@ anything is read or written until the end: a second process writing the same fil
 with ``store.RunBusyError``, having changed nothing. An existing ``out`` is replaced only when the
 new run is complete (the rename of ``out.part``); ``overwrite=False`` refuses to replace it
 (``store.RunExistsError``). A ``.part`` that cannot be resumed (another configuration, no
-checkpoint, damaged) is discarded with a ``RuntimeWarning`` saying why. A failed write (a full
+checkpoint, damaged) is discarded with a ``RuntimeWarning`` saying why; the returned summary's
+``discarded`` keeps the reason (None when nothing was discarded). A failed write (a full
 disk, ...) raises ``store.RunWriteError`` with one line; the ``.part`` and its checkpoint stay for
 the resume and no temporary file is left.
 
@@ -63,6 +64,7 @@ def _simulate(config, seed, out, progress, resume, position, on_progress) -> dic
     t0 = time.perf_counter()
     why: list[str] = []
     resumed = RunWriter.resume(out, config.hash(), why=why) if resume else None
+    discarded = None
     if resumed is not None:
         writer, state = resumed
     else:
@@ -75,6 +77,7 @@ def _simulate(config, seed, out, progress, resume, position, on_progress) -> dic
         if discarded:
             reason = ("--no-resume (resume=False) was given" if not resume
                       else why[0] if why else "it cannot be resumed")
+            discarded = reason
             warnings.warn(f"discarded {part}: {reason}; started afresh", RuntimeWarning, stacklevel=3)
         state = None
     start_frame = writer.n_frames
@@ -120,7 +123,7 @@ def _simulate(config, seed, out, progress, resume, position, on_progress) -> dic
     if message is not None:
         warnings.warn(message, RuntimeWarning, stacklevel=2)
     return dict(path=str(path), seed=seed, seconds=time.perf_counter() - t0,
-                resumed_from_frame=start_frame if resumed is not None else None,
+                resumed_from_frame=start_frame if resumed is not None else None, discarded=discarded,
                 end_reason=ended.reason, end_theta_deg=ended.theta_deg, steps=ended.steps,
                 sweeps=ended.sweeps, capped_steps=ended.capped_steps,
                 cap_hits=report["cap_hits"], missed=report["missed_steps"],

@@ -228,8 +228,16 @@ def test_sigkill_then_rerun_is_bit_identical(tmp_path):
     m = run_ensemble(cfg, [0, 1], out, workers=2, progress=False)
     assert [m["runs"][s]["status"] for s in ("0", "1")] == ["done", "done"]
     assert not list(out.glob("*.part")) and not list(out.glob("*.ckpt"))
-    for seed, k in resumable.items():
-        assert m["runs"][seed]["resumed_from_frame"] == k, f"seed {seed} did not resume from its checkpoint"
+    # A run resumes from its checkpoint, unless the kill caught HDF5 writing its .part: then the
+    # file cannot be read back, and the run starts afresh and says why (docs/run-file.md). The run
+    # the kill was timed on had just flushed and resumes; the other, killed at a random point of
+    # its own, was caught so in 1 of ~120 kills on this machine.
+    resumed = [seed for seed, k in resumable.items() if m["runs"][seed]["resumed_from_frame"] == k]
+    assert resumed, f"no run resumed from its checkpoint: {[m['runs'][s] for s in resumable]}"
+    for seed in set(resumable) - set(resumed):
+        r = m["runs"][seed]
+        assert r["resumed_from_frame"] is None, (seed, r)
+        assert r["discarded"] in ("it cannot be read", "its frames cannot be read back"), (seed, r)
 
     ref = tmp_path / "reference"
     for seed in (0, 1):

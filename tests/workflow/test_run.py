@@ -249,6 +249,7 @@ def test_part_file_that_changed_after_its_checkpoint_is_not_resumed(
     with pytest.warns(RuntimeWarning, match="discarded .*run.h5.part: its frames differ"):
         summary = simulate(cfg, 2, out, progress=False)
     assert summary["resumed_from_frame"] is None
+    assert summary["discarded"] == "its frames differ from those its checkpoint follows"
     assert not checkpoint_path(out).exists()
     assert_same_run(out, ref)
 
