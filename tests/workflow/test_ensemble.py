@@ -231,7 +231,7 @@ def test_sigkill_then_rerun_is_bit_identical(tmp_path):
     # A run resumes from its checkpoint, unless the kill caught HDF5 writing its .part: then the
     # file cannot be read back, and the run starts afresh and says why (docs/run-file.md). The run
     # the kill was timed on had just flushed and resumes; the other, killed at a random point of
-    # its own, was caught so in 1 of ~120 kills on this machine.
+    # its own, was caught so in 1 of ~120 runs of this test on a loaded 2-core machine.
     resumed = [seed for seed, k in resumable.items() if m["runs"][seed]["resumed_from_frame"] == k]
     assert resumed, f"no run resumed from its checkpoint: {[m['runs'][s] for s in resumable]}"
     for seed in set(resumable) - set(resumed):

@@ -17,7 +17,8 @@ starts afresh and says why, ``discarded`` in its summary), but the work up to th
 HDF5 does not keep a file readable through a kill in the middle of its own writes, so the
 refused share estimates the share of a run's time spent writing its ``.part``.
 
-docs/performance-log.md ("The paper ensemble, forty runs landed") records what it measured.
+docs/performance-log.md ("The paper ensemble landed at forty runs; kills mid-write") records what it
+measured.
 """
 from __future__ import annotations
 
