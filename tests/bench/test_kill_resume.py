@@ -13,7 +13,7 @@ def test_a_run_killed_just_after_its_checkpoint_resumes_and_one_left_alone_finis
     counts). A checkpoint it never reaches (more frames than the run has) lets it finish."""
     near = kr.study(3, min_frames=6, max_delay=0.0, progress=False)
     assert sum(near.values()) == 3
-    assert set(near) <= {"resumable", "finished"} | {k for k in near if k.startswith("refused: ")}
+    assert all(k in ("resumable", "finished") or k.startswith("refused: ") for k in near), near
     assert near["resumable"] >= 2, near
     assert kr.kill_once("smoke", kr.SMALL, 10_000, 0.0, tmp_path) == "finished"
 

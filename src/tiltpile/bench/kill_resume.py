@@ -114,18 +114,11 @@ def main(argv=None) -> Counter:
     ap.add_argument("--preset", default="smoke")
     ap.add_argument("--set", action="append", default=None, metavar="section.key=value")
     a = ap.parse_args(argv)
-    if a.n < 1:
-        ap.error(f"N must be >= 1, got {a.n}")
-    if a.max_delay < 0:
-        ap.error(f"--max-delay must be >= 0, got {a.max_delay}")
-    from tiltpile.config import ConfigError, load
-
     overrides = SMALL if a.set is None else a.set
-    try:
-        load(a.preset, overrides=overrides)
-    except ConfigError as e:
+    try:  # bad N, delay or settings (ConfigError is a ValueError) stop before the first run starts
+        counts = study(a.n, a.preset, overrides, a.min_frames, a.max_delay, a.seed, progress=True)
+    except ValueError as e:
         ap.exit(2, f"kill_resume: {e}\n")
-    counts = study(a.n, a.preset, overrides, a.min_frames, a.max_delay, a.seed, progress=True)
     killed = a.n - counts["finished"]
     print(f"{a.n} kills of {a.preset} {' '.join(overrides)} (checkpoint >= {a.min_frames} frames, "
           f"then 0-{a.max_delay:g} s): " + ", ".join(f"{k} {v}" for k, v in sorted(counts.items())))
