@@ -7,54 +7,10 @@ module) and from any layer below its own; ``tiltpile`` itself only for ``__versi
 
 from __future__ import annotations
 
-import ast
-from pathlib import Path
-
 import pytest
+from importgraph import MODULES, imports_of
 
 import tiltpile
-
-SRC = Path(__file__).resolve().parents[1] / "src"
-
-
-def _modules() -> dict[str, tuple[Path, bool]]:
-    """{dotted name: (path, is package)} of every module under src/tiltpile."""
-    out = {}
-    for p in sorted((SRC / "tiltpile").rglob("*.py")):
-        parts = list(p.relative_to(SRC).with_suffix("").parts)
-        is_pkg = parts[-1] == "__init__"
-        out[".".join(parts[:-1] if is_pkg else parts)] = (p, is_pkg)
-    return out
-
-
-MODULES = _modules()
-
-
-def _resolve(name: str) -> str:
-    """The most specific module of ``name`` that exists (``a.b.func`` -> ``a.b``)."""
-    while name and name not in MODULES:
-        name = name.rpartition(".")[0]
-    return name
-
-
-def imports_of(mod: str) -> list[tuple[str, int]]:
-    """(imported tiltpile module, line) for every import statement of ``mod``."""
-    path, is_pkg = MODULES[mod]
-    here = mod.split(".") if is_pkg else mod.split(".")[:-1]
-    out = []
-    for node in ast.walk(ast.parse(path.read_text(), str(path))):
-        if isinstance(node, ast.Import):
-            out += [(_resolve(a.name), node.lineno) for a in node.names if a.name.split(".")[0] == "tiltpile"]
-        elif isinstance(node, ast.ImportFrom):
-            base = node.module or ""
-            if node.level:
-                base = ".".join(here[: len(here) - node.level + 1] + ([node.module] if node.module else []))
-            if base.split(".")[0] != "tiltpile":
-                continue
-            for a in node.names:
-                full = f"{base}.{a.name}"
-                out.append((full if full in MODULES else _resolve(base), node.lineno))
-    return out
 
 
 def part(mod: str) -> str:

@@ -6,7 +6,7 @@ JSON, the report, the preparation study and the <z> chart, each newer than its i
 JSON the report reads. What would rebuild must be exactly what depends on FILE:
 
 * a figure notebook: itself and the modules of ``src/tiltpile`` its code imports, directly or not
-  (read from the source, as tests/test_layers.py reads imports);
+  (read from the source by tests/importgraph.py, as tests/test_layers.py reads them);
 * the preparation study (``make preparation``): likewise for notebooks/preparation.ipynb;
 * the <z> chart (``make zcount``): what ``tiltpile.figures.zcount`` imports, and the command;
 * the report: ``tiltpile.report`` and its command, every file :func:`tiltpile.report.inputs`
@@ -28,6 +28,7 @@ from pathlib import Path
 
 import nbformat
 import pytest
+from importgraph import MODULES, imports, imports_of
 from makehelpers import MAKE_ENV
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -35,43 +36,6 @@ SRC = ROOT / "src"
 
 
 # -- what depends on what, from the source --------------------------------------------------------
-
-def _modules() -> dict[str, Path]:
-    out = {}
-    for p in sorted((SRC / "tiltpile").rglob("*.py")):
-        parts = list(p.relative_to(SRC).with_suffix("").parts)
-        out[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = p
-    return out
-
-
-MODULES = _modules()
-
-
-def _resolve(name: str) -> str:
-    while name and name not in MODULES:
-        name = name.rpartition(".")[0]
-    return name
-
-
-def _imports(tree: ast.AST, here: list[str]) -> set[str]:
-    """tiltpile modules imported anywhere in ``tree`` (functions included); ``here``: the package
-    of the code, for relative imports."""
-    out = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.Import):
-            out |= {_resolve(a.name) for a in node.names if a.name.split(".")[0] == "tiltpile"}
-        elif isinstance(node, ast.ImportFrom):
-            base = node.module or ""
-            if node.level:
-                base = ".".join(here[: len(here) - node.level + 1] + ([node.module] if node.module else []))
-            if base.split(".")[0] != "tiltpile":
-                continue
-            for a in node.names:
-                full = f"{base}.{a.name}"
-                out.add(full if full in MODULES else _resolve(base))
-    return out
-
-
 def _closure(mods) -> set[Path]:
     """The files of ``mods`` and of everything they import, with their parent packages."""
     seen, todo = set(), list(mods)
@@ -82,15 +46,13 @@ def _closure(mods) -> set[Path]:
         seen.add(m)
         parts = m.split(".")
         todo += [".".join(parts[:k]) for k in range(1, len(parts))]
-        path = MODULES[m]
-        here = parts if path.name == "__init__.py" else parts[:-1]
-        todo += _imports(ast.parse(path.read_text()), here)
+        todo += [t for t, _ in imports_of(m)]
     return {MODULES[m].relative_to(ROOT) for m in seen}
 
 
 def _notebook_code(nb: Path) -> set[Path]:
     code = "\n".join(c.source for c in nbformat.read(nb, as_version=4).cells if c.cell_type == "code")
-    return _closure(_imports(ast.parse(code), ["tiltpile"])) | {nb.relative_to(ROOT)}
+    return _closure([t for t, _ in imports(ast.parse(code), ["tiltpile"])]) | {nb.relative_to(ROOT)}
 
 
 FIG_NOTEBOOKS = sorted((ROOT / "notebooks").glob("fig*.ipynb"))
@@ -113,8 +75,7 @@ def test_figure_modules_import_no_other_figure_but_through_the_declared_ones():
     imports is fig2 (the preparation study is Fig. 2's computation on several ensembles)."""
     figures = {m for m in MODULES if re.fullmatch(r"tiltpile\.figures\.(fig\d|preparation|zcount)", m)}
     for m in sorted(figures):
-        path = MODULES[m]
-        others = _imports(ast.parse(path.read_text()), m.split(".")[:-1]) & figures - {m}
+        others = {t for t, _ in imports_of(m)} & figures - {m}
         allowed = {"tiltpile.figures.fig2"} if m.endswith("preparation") else set()
         assert others <= allowed, f"{m} imports {sorted(others)}: move what they share to a shared module"
 
