@@ -315,6 +315,10 @@ def test_scales_table_gives_each_scales_cost(tmp_path):
     assert row("NLGS sweeps per run") == "93.0 M"
     assert row("wall time per run") == "30.0 min (median of 3 of 3 runs)"
     assert row("core-hours, all runs") == "~1.5 (median x 3 runs)"
+    # the paper ensemble's 50 runs at 2 h 05 min: whole core-hours, never '1e+02'
+    _write(tmp_path, [dict(timed, n_runs=50, cost=dict(timed["cost"], seconds_per_run=7542.0))])
+    lines = render_scales(tmp_path)
+    assert row("core-hours, all runs") == "~105 (median x 50 runs)"
     _write(tmp_path, [dict(timed, cost=dict(timed["cost"], runs_timed=0, seconds_per_run=None))])
     lines = render_scales(tmp_path)
     assert row("wall time per run") == "not recorded whole (resumed runs)"

@@ -79,8 +79,10 @@ def _cost_rows(doc: dict) -> dict[str, str]:
     sweeps, sec, timed = _num(cost.get("sweeps_per_run")), _num(cost.get("seconds_per_run")), cost.get("runs_timed")
     wall = (f"{_f(sec / 60.0, '.1f')} min (median of {timed} of {n_runs} runs)" if math.isfinite(sec)
             else "not recorded whole (resumed runs)")
-    hours = (f"~{_f(sec * n_runs / 3600.0, '.2g')} (median x {n_runs} runs)"
-             if math.isfinite(sec) and n_runs else "n/a")
+    core_hours = sec * n_runs / 3600.0 if math.isfinite(sec) and n_runs else math.nan
+    # two significant digits, but whole hours from ten on ('.2g' would print 105 as 1e+02)
+    hours = (f"~{_f(core_hours, '.0f' if core_hours >= 10 else '.2g')} (median x {n_runs} runs)"
+             if math.isfinite(core_hours) else "n/a")
     return {"NLGS sweeps per run": f"{_f(sweeps / 1e6, '.1f')} M" if math.isfinite(sweeps) else "n/a",
             "wall time per run": wall, "core-hours, all runs": hours}
 
