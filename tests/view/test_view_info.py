@@ -122,6 +122,9 @@ def test_an_ensemble_says_what_its_runs_cost_and_what_is_left(tiny_ensemble, cap
         "  cost     1 finished: 90.0 M sweeps per run (mean), 2 h 00 min per run "
         "(median of 1 timed whole), ~2 core-hours (median x 1)"]
     assert cost_lines([], 5, [], 2) == []
+    # a cluster's ensemble: 500 runs at 2 h 15 min are ~1125 core-hours, not '1.12e+03'
+    assert cost_lines([dict(whole, seconds=8100.0)] * 500, 0, [], 2)[0].endswith(
+        "~1125 core-hours (median x 500)")
 
 
 def _foreign_h5(path):

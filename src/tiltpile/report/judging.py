@@ -25,6 +25,13 @@ class Claim:
     judge: Callable[[dict], tuple[str, str, str]]   # numbers -> (ours, verdict, note)
 
 
+def approx(x: float, digits: int) -> str:
+    """``x`` to ``digits`` significant digits, but never in exponent notation from 1 on: the
+    core-hours of an ensemble (105 to two digits is '105', where '.2g' gives '1e+02')."""
+    s = f"{x:.{digits}g}"
+    return f"{x:.0f}" if "e+" in s else s
+
+
 def _f(x, fmt: str = ".3g") -> str:
     if x is None or (isinstance(x, float) and not math.isfinite(x)):
         return "n/a"

@@ -9,7 +9,7 @@ import math
 import statistics
 from pathlib import Path
 
-from .judging import SEPARATION, _ci, _f, _num, _wrong_side
+from .judging import SEPARATION, _ci, _f, _num, _wrong_side, approx
 
 
 SCALES = (("smoke", "smoke"), ("default", ""), ("default-fresh", "default-fresh"), ("paper", "paper"),
@@ -79,10 +79,8 @@ def _cost_rows(doc: dict) -> dict[str, str]:
     sweeps, sec, timed = _num(cost.get("sweeps_per_run")), _num(cost.get("seconds_per_run")), cost.get("runs_timed")
     wall = (f"{_f(sec / 60.0, '.1f')} min (median of {timed} of {n_runs} runs)" if math.isfinite(sec)
             else "not recorded whole (resumed runs)")
-    core_hours = sec * n_runs / 3600.0 if math.isfinite(sec) and n_runs else math.nan
-    # two significant digits, but whole hours from ten on ('.2g' would print 105 as 1e+02)
-    hours = (f"~{_f(core_hours, '.0f' if core_hours >= 10 else '.2g')} (median x {n_runs} runs)"
-             if math.isfinite(core_hours) else "n/a")
+    hours = (f"~{approx(sec * n_runs / 3600.0, 2)} (median x {n_runs} runs)"
+             if math.isfinite(sec) and n_runs else "n/a")
     return {"NLGS sweeps per run": f"{_f(sweeps / 1e6, '.1f')} M" if math.isfinite(sweeps) else "n/a",
             "wall time per run": wall, "core-hours, all runs": hours}
 

@@ -318,6 +318,7 @@ def cost_lines(costs: list[dict], n_pending: int, running_walls: list[float | No
     work, takes longer than the median), else the median less its time so far. [] without a
     finished run."""
     from tiltpile.analysis.ensemble_data import ensemble_cost
+    from tiltpile.report.judging import approx
 
     if not costs:
         return []
@@ -330,14 +331,14 @@ def cost_lines(costs: list[dict], n_pending: int, running_walls: list[float | No
             x for x in (sweeps, "wall time not recorded whole (resumed runs)") if x)]
     out = [f"  cost     {n} finished: " + ", ".join(x for x in (
         sweeps, f"{_duration(sec)} per run (median of {c['runs_timed']} timed whole)",
-        f"~{sec * n / 3600:.3g} core-hours (median x {n})") if x)]
+        f"~{approx(sec * n / 3600, 3)} core-hours (median x {n})") if x)]
     left = n_pending + len(running_walls)
     if left:
         hours = (left * sec - sum(w for w in running_walls if w is not None)) / 3600
         hours = max(hours, 0.0)
-        wall = f", ~{hours / workers:.3g} h on {workers} worker(s)" if workers else ""
+        wall = f", ~{approx(hours / workers, 3)} h on {workers} worker(s)" if workers else ""
         out.append(f"  left     {left} run(s) ({n_pending} pending, {len(running_walls)} running): "
-                   f"~{hours:.3g} core-hours at that median{wall}")
+                   f"~{approx(hours, 3)} core-hours at that median{wall}")
     if running_names:
         mean_sweeps = c["sweeps_per_run"]
         to_go = []
