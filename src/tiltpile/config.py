@@ -8,7 +8,7 @@ sections, each a frozen dataclass whose fields carry their type and allowed rang
 ``protocol``  deposition and quasi-static tilt (what is done to the pile),
 ``health``    the limits at which a run is flagged, warned about, or stopped (``HealthConfig``).
 
-Presets ``smoke``, ``default``, ``default-fresh``, ``paper`` and ``paper-fresh`` live in
+Presets ``smoke``, ``default``, ``default-fresh``, ``paper``, ``paper-fresh`` and ``paper-fast`` live in
 ``tiltpile/presets/*.toml``. The fields' defaults are the ``default-fresh`` preset's values (the
 default preset without its history): a configuration built from nothing is that preset
 (``tests/workflow/test_config.py``), and each preset file gives what it changes, its scale always. A preset may be overridden by a TOML file and by ``key=value`` strings with
@@ -35,7 +35,7 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-PRESETS = ("smoke", "default", "default-fresh", "paper", "paper-fresh")
+PRESETS = ("smoke", "default", "default-fresh", "paper", "paper-fresh", "paper-fast")
 
 
 class ConfigError(ValueError):
