@@ -18,7 +18,7 @@ def _synopsis() -> dict[str, str]:
     lines: dict[str, str] = {}
     command = None
     for line in block.splitlines():
-        m = re.match(r"tiltpile (\w+)", line)
+        m = re.match(r"tiltpile ([\w-]+)", line)
         if m:
             command = m.group(1)
             lines.setdefault(command, "")

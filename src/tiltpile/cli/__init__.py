@@ -19,14 +19,14 @@ import sys
 from tiltpile import config as cfgmod
 
 COMMANDS = ("simulate", "ensemble", "observables", "verify", "report", "bench", "info", "export", "movie",
-            "repose", "zcount", "record")
+            "repose", "zcount", "record", "same-piles")
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="tiltpile", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
     for name in COMMANDS:
-        importlib.import_module(f"tiltpile.cli.{name}").add_parser(sub)
+        importlib.import_module(f"tiltpile.cli.{name.replace('-', '_')}").add_parser(sub)
     return p
 
 

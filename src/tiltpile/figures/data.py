@@ -17,7 +17,7 @@ from tiltpile.analysis import DEFAULT_PARAMS
 from tiltpile.analysis.ensemble_data import Ensemble, load_ensemble
 
 __all__ = ["Ensemble", "load", "load_ensemble", "snapshot", "analysis_params", "per_run_quiet",
-           "first_below"]
+           "first_below", "recorded_params"]
 
 # what a figure's JSON names under "analysis" whatever their values: the lost-contact criterion
 ALWAYS_RECORDED = ("cutoff", "lost_gap")
@@ -31,9 +31,14 @@ def load(data_dir, preset: str | None = None, **params) -> Ensemble:
     unknown = sorted(set(params) - set(DEFAULT_PARAMS))
     if unknown:
         raise TypeError(f"unknown analysis parameter(s) {unknown}; allowed: {sorted(DEFAULT_PARAMS)}")
-    given = {k: v for k, v in params.items()
-             if k in ALWAYS_RECORDED or not _same_value(v, DEFAULT_PARAMS[k])}
-    return load_ensemble(data_dir, preset, **given)
+    return load_ensemble(data_dir, preset, **recorded_params(params))
+
+
+def recorded_params(params: dict) -> dict:
+    """What :func:`load` passes on of the analysis ``params`` (and an ensemble's JSON records):
+    ``ALWAYS_RECORDED`` and every other parameter whose value differs from its default."""
+    return {k: v for k, v in params.items()
+            if k in ALWAYS_RECORDED or not _same_value(v, DEFAULT_PARAMS[k])}
 
 
 def _same_value(a, b) -> bool:

@@ -148,8 +148,20 @@ def save(fig, name: str, numbers: dict, figures_dir, meta: dict | None = None) -
         kw = {"metadata": {"CreationDate": None}} if ext == "pdf" else {"metadata": {"Software": None}}
         fig.savefig(tmp, format=ext, **kw)
         os.replace(tmp, paths[ext])
-    doc = {"figure": name, **jsonable(meta or {}), "numbers": jsonable(numbers)}
-    tmp = paths["json"].with_name(f".{name}.tmp.json")
-    tmp.write_text(json.dumps(doc, indent=1, sort_keys=False) + "\n")
-    os.replace(tmp, paths["json"])
+    write_json(paths["json"], {"figure": name, **jsonable(meta or {}), "numbers": jsonable(numbers)})
     return paths
+
+
+def write_json(path, doc) -> Path:
+    """Write ``doc`` (plain JSON types) to ``path`` as the figures' JSON are written (indent 1,
+    keys in their order, a final newline): to a temporary name of this process, then renamed, so
+    that the file is replaced whole or not at all."""
+    path = Path(path)
+    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+    try:
+        tmp.write_text(json.dumps(doc, indent=1, sort_keys=False) + "\n")
+        os.replace(tmp, path)
+    except BaseException:
+        tmp.unlink(missing_ok=True)
+        raise
+    return path

@@ -1,0 +1,95 @@
+"""``tiltpile same-piles REF DIR --out OUTDIR``: the same piles under two settings, pile against pile
+and every figure number ensemble against ensemble (:mod:`tiltpile.figures.same_piles`)."""
+
+from __future__ import annotations
+
+import math
+import sys
+from pathlib import Path
+
+from tiltpile.cli._common import ConfigError
+
+
+def add_parser(sub) -> None:
+    p = sub.add_parser("same-piles", help="two ensembles of the same seeds: pile against pile, and "
+                                          "every figure number in units of its jackknife error")
+    p.add_argument("ref", type=Path, metavar="REF",
+                   help="the reference ensemble: a directory of run_*.h5 or of their records")
+    p.add_argument("dir", type=Path, metavar="DIR", help="the ensemble compared with it (the same)")
+    p.add_argument("--out", type=Path, required=True, metavar="OUTDIR",
+                   help="write OUTDIR/same_piles.json and each side's figure documents "
+                        "OUTDIR/LABEL/figN_*.json")
+    p.add_argument("--ref-label", default=None, help="name of REF in the output (default: its "
+                                                     "preset, else its directory name)")
+    p.add_argument("--label", default=None, help="name of DIR in the output (same default)")
+    p.add_argument("--seeds", type=int, default=None, metavar="N",
+                   help="the first N common seeds only (default: every common seed)")
+    p.add_argument("--quiet", action="store_true", help="no progress lines")
+    p.set_defaults(func=run)
+
+
+def _label(d: Path, given: str | None, ens) -> str:
+    name = given or ens.meta.get("preset") or d.resolve().name
+    if not name or "/" in name or name in (".", ".."):
+        raise ConfigError(f"label {name!r} of {d}: give a plain name (--label, --ref-label)")
+    return name
+
+
+def _load(d: Path):
+    from tiltpile.figures import data
+    from tiltpile.record import record_files
+
+    if not d.is_dir():
+        raise ConfigError(f"{d}: no such ensemble directory")
+    if not sorted(d.glob("run_*.h5")) and not record_files(d):
+        raise ConfigError(f"{d}: no run_*.h5 files nor records run_*.npz to compare")
+    preset = _preset_of(d)
+    return data.load(d, preset, cutoff=0.02, lost_gap=None)
+
+
+def _preset_of(d: Path) -> str | None:
+    """The preset named by the directory's manifest, or by its records' parent directory
+    (figures/PRESET/records), or None."""
+    from tiltpile.ensemble import read_manifest
+    m = read_manifest(d) if (d / "ensemble.json").exists() else None
+    if m and m.get("preset"):
+        return m["preset"]
+    from tiltpile import config as cfgmod
+    parent = d.resolve().parent.name if d.name == "records" else None
+    return parent if parent in cfgmod.PRESETS else None
+
+
+def run(args) -> int:
+    """Validate both ensembles, the seeds and the output first, then run the study and write it."""
+    from tiltpile.figures import same_piles as sp
+    from tiltpile.paths import check_output
+
+    if args.seeds is not None and args.seeds < 3:
+        raise ConfigError(f"--seeds must be at least 3 (the jackknife needs 3 runs), got {args.seeds}")
+    if args.ref.resolve() == args.dir.resolve():
+        raise ConfigError(f"{args.ref}: REF and DIR are the same directory")
+    ref, ens = _load(args.ref), _load(args.dir)
+    ref_label, label = _label(args.ref, args.ref_label, ref), _label(args.dir, args.label, ens)
+    if ref_label == label:
+        raise ConfigError(f"REF and DIR are both labelled {label!r}: give --ref-label or --label")
+    seeds = sp.common_seeds(ref, ens)
+    if args.seeds is not None:
+        if len(seeds) < args.seeds:
+            raise ConfigError(f"--seeds {args.seeds}: the ensembles share only {len(seeds)} seeds")
+        seeds = seeds[:args.seeds]
+    if len(seeds) < 3:
+        raise ConfigError(f"{args.ref} and {args.dir} share {len(seeds)} seeds: the comparison "
+                          "needs 3 or more")
+    check_output(args.out / f"{sp.NAME}.json", "--out")
+    ref, ens = sp.subset(ref, seeds), sp.subset(ens, seeds)
+    say = None if args.quiet else (lambda line: print(f"tiltpile same-piles: {line}", file=sys.stderr,
+                                                      flush=True))
+    doc = sp.study(ref, ens, ref_label, label, progress=say)
+    path = sp.write_study(doc, args.out)
+    print(f"{label} against {ref_label} on {len(seeds)} seeds: {doc['n_moved']} of "
+          f"{doc['n_with_error']} figure numbers with an error moved by more than "
+          f"{sp.SIGMA_LIMIT:g} standard errors ({doc['n_numbers']} numbers in all); {path}")
+    for c, d in doc["pile_against_pile"]["difference"].items():
+        if math.isfinite(d["mean"]):
+            print(f"  {c}: {d['mean']:+.3g} [{d['ci_low']:+.3g}, {d['ci_high']:+.3g}] over {d['n']} seeds")
+    return 0

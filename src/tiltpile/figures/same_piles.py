@@ -1,0 +1,314 @@
+"""The same piles under two settings: pile against pile, and every figure number ensemble against
+ensemble in units of its statistical error.
+
+Two ensembles of the same seeds deposit the same piles when only what comes after the deposition
+differs (the history's rate: ``paper-fast`` against ``paper``; another engine on the same piles).
+This study says whether the second setting may stand in for the first (``tiltpile same-piles``):
+
+* **pile against pile** (:func:`pile_against_pile`): per seed, the numbers of
+  :func:`tiltpile.figures.preparation.per_run_table` (first onset by the 2% criterion, first
+  large slide at the avalanche threshold, onsets, <z> and <n_m> of the quiet frames, the first
+  change above 0.5%, the pile at frame 0 where run files hold it) of each ensemble, their paired
+  difference per seed, and the mean difference with a BCa bootstrap interval over the seeds
+  (:func:`tiltpile.analysis.stats.bootstrap_ci` of the per-seed differences);
+* **ensemble against ensemble** (:func:`ensemble_against_ensemble`): every scalar number of every
+  figure, computed as the figure's notebook computes it (:func:`figure_documents`: the
+  notebook's own parameters and code cells, without the plot), for both ensembles; its standard
+  error by the jackknife over runs (leave one run out, :func:`jackknife`; sqrt((n - 1) / n * sum (x_i -
+  x)^2)); the shift in units of the combined error sqrt(se_ref^2 + se^2), as
+  ``tiltpile.bench.guard`` measures settings, and the paired jackknife of the shift (the same
+  seed left out of both) beside it. A number whose leave-one-out values are not all finite has
+  no error (NaN): it depends on a single run.
+
+The figure documents of both ensembles on the common seeds are written beside the comparison, so
+that the report judges the paper's claims on each (``tiltpile.report``) and says whether every
+verdict is the same.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import json
+import math
+from dataclasses import replace
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+from tiltpile.analysis.stats import bootstrap_ci
+
+from . import data as _data
+from . import style
+
+NAME = "same_piles"
+# the figures' stems, as their notebooks are named (notebooks/<stem>.ipynb)
+FIGURES = ("fig1_isostaticity", "fig2_avalanche_criterion", "fig3_clusters_failure",
+           "fig4_cluster_isostaticity", "fig5_cluster_sizes", "fig6_cluster_stability",
+           "fig7_rigidity")
+# the per-seed numbers compared pile against pile (columns of preparation.per_run_table)
+PER_SEED = ("theta_first_onset", "theta_first_slide", "n_onsets", "z_quiet", "n_m_quiet",
+            "z_start", "theta_first_change", "phi_start", "fabric_start")
+# a shift larger than this many combined standard errors moves a figure number
+SIGMA_LIMIT = 2.0
+
+
+# ----------------------------------------------------------------------------------------------
+# the ensembles
+
+
+def common_seeds(a, b) -> list[int]:
+    """The seeds both ensembles hold, sorted."""
+    return sorted(set(int(s) for s in a.seeds) & set(int(s) for s in b.seeds))
+
+
+def subset(ens, seeds):
+    """The ensemble ``ens`` restricted to ``seeds`` (tables, seeds, meta's run count and seeds);
+    ValueError for a seed it does not hold."""
+    seeds = [int(s) for s in seeds]
+    missing = sorted(set(seeds) - set(int(s) for s in ens.seeds))
+    if missing:
+        raise ValueError(f"seeds {missing} are not in the ensemble {ens.data_dir} (seeds {list(ens.seeds)})")
+    keep = set(seeds)
+    fr = ens.frames[ens.frames["run"].isin(keep)].reset_index(drop=True)
+    cl = ens.clusters[ens.clusters["run"].isin(keep)].reset_index(drop=True)
+    meta = dict(ens.meta, n_runs=len(seeds), seeds=list(seeds))
+    records = {s: p for s, p in ens.records.items() if s in keep}
+    return replace(ens, frames=fr, clusters=cl, seeds=list(seeds), meta=meta, records=records)
+
+
+# ----------------------------------------------------------------------------------------------
+# a figure's numbers as its notebook computes them
+
+
+def _notebook_cells(stem: str, notebooks_dir) -> tuple[str, list[str]]:
+    """The parameters cell and the other code cells of ``notebooks_dir/<stem>.ipynb`` that
+    compute (those drawing or saving the figure left out)."""
+    path = Path(notebooks_dir) / f"{stem}.ipynb"
+    if not path.is_file():
+        raise FileNotFoundError(f"{path}: no notebook for figure {stem}")
+    nb = json.loads(path.read_text())
+    params, cells = None, []
+    for c in nb["cells"]:
+        if c["cell_type"] != "code":
+            continue
+        src = "".join(c["source"])
+        if "parameters" in c.get("metadata", {}).get("tags", []):
+            params = src
+        elif ".plot(" not in src and "style.save(" not in src:
+            cells.append(src)
+    if params is None:
+        raise ValueError(f"{path}: no cell tagged 'parameters'")
+    return params, cells
+
+
+@contextlib.contextmanager
+def _given_ensemble(ens):
+    """``figures.data.load`` returns ``ens`` inside the block, described as the notebook's load
+    would describe it (``meta["analysis"]``); the notebook's analysis parameters must be the ones
+    ``ens`` was loaded with (else ValueError: its tables would be other ones)."""
+    real = _data.load
+    held = _data.analysis_params(ens)
+
+    def load(data_dir, preset=None, **params):
+        want = dict(held, **{k: v for k, v in params.items()})
+        if json.dumps(want, sort_keys=True, default=str) != json.dumps(held, sort_keys=True, default=str):
+            diff = sorted(k for k in params if json.dumps(params[k], default=str)
+                          != json.dumps(held.get(k), default=str))
+            raise ValueError(f"the notebook asks for analysis parameters {diff} other than the "
+                             "ensemble's tables were computed with")
+        # the description the notebook's own load would give (figures.data.load)
+        return replace(ens, meta=dict(ens.meta, analysis=_data.recorded_params(params)))
+
+    _data.load = load
+    try:
+        yield
+    finally:
+        _data.load = real
+
+
+def figure_documents(ens, stems=FIGURES, notebooks_dir="notebooks") -> dict[str, dict]:
+    """{stem: JSON document} of each figure on ``ens``, computed by the figure's notebook: its
+    parameters cell (the defaults ``make figures`` uses) and its code cells, the ensemble given in
+    place of the one the notebook loads, without drawing. Each document is what the figure's
+    JSON would hold (``style.save``: ``figure``, the ensemble's description, ``numbers``)."""
+    out = {}
+    for stem in stems:
+        params, cells = _notebook_cells(stem, notebooks_dir)
+        ns: dict = {}
+        exec(compile(params, f"{stem}:parameters", "exec"), ns)
+        with _given_ensemble(ens):
+            for k, src in enumerate(cells):
+                exec(compile(src, f"{stem}:cell{k}", "exec"), ns)
+        if "numbers" not in ns or "ens" not in ns:
+            raise ValueError(f"notebook {stem} computes no `numbers` from an `ens`")
+        out[stem] = document(ns["ens"].meta, stem, ns["numbers"])
+    return out
+
+
+def document(meta: dict, stem: str, numbers: dict) -> dict:
+    """The figure's JSON document as ``style.save`` writes it, in JSON form (NaN as None)."""
+    return json.loads(json.dumps({"figure": stem, **style.jsonable(meta or {}),
+                                  "numbers": style.jsonable(numbers)}))
+
+
+def scalars(numbers: dict) -> dict[str, float]:
+    """The scalar numbers of a figure (int, float, bool; None as NaN), in their order; lists,
+    strings and mappings are left out."""
+    out = {}
+    for k, v in numbers.items():
+        if isinstance(v, np.generic):
+            v = v.item()
+        if v is None:
+            out[k] = math.nan
+        elif isinstance(v, (bool, int, float)):
+            out[k] = float(v)
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# standard errors over runs
+
+
+def jackknife(values_full: dict, values_loo: list[dict]) -> dict[str, float]:
+    """Jackknife standard error of each key of ``values_full`` from its leave-one-run-out values
+    (one dict per run left out): sqrt((n - 1) / n * sum_i (x_i - mean)^2); NaN where the full
+    value is not finite or any leave-one-out value is not (the number hangs on a single run)."""
+    n = len(values_loo)
+    out = {}
+    for k, full in values_full.items():
+        x = np.array([v.get(k, math.nan) for v in values_loo], float)
+        if n < 2 or not math.isfinite(full) or not np.isfinite(x).all():
+            out[k] = math.nan
+        else:
+            out[k] = float(math.sqrt((n - 1) / n * float(((x - x.mean()) ** 2).sum())))
+    return out
+
+
+def _all_scalars(docs: dict) -> dict[str, float]:
+    return {f"{stem}.{k}": v for stem, doc in docs.items() for k, v in scalars(doc["numbers"]).items()}
+
+
+def ensemble_against_ensemble(ref, ens, stems=FIGURES, notebooks_dir="notebooks",
+                              progress=None) -> tuple[pd.DataFrame, dict, dict]:
+    """Every scalar figure number of ``ens`` against ``ref`` on their common seeds (module
+    docstring). Returns (table, numbers_ref, numbers) where table has one row per number:
+    figure, key, ref, value, shift, se_ref, se, sigma (shift / sqrt(se_ref^2 + se^2); 0 where
+    the shift is 0, NaN where an error is), se_paired (jackknife of the shift, the same seed left
+    out of both), sigma_paired, moved (|sigma| > SIGMA_LIMIT); and the figure documents of both
+    on the common seeds ({stem: document}). ``progress``: called with a line per evaluation."""
+    seeds = common_seeds(ref, ens)
+    if len(seeds) < 3:
+        raise ValueError(f"the ensembles share {len(seeds)} seeds: the jackknife needs 3 or more")
+    a, b = subset(ref, seeds), subset(ens, seeds)
+    say = progress or (lambda line: None)
+    say(f"all {len(seeds)} seeds")
+    na, nb = figure_documents(a, stems, notebooks_dir), figure_documents(b, stems, notebooks_dir)
+    fa, fb = _all_scalars(na), _all_scalars(nb)
+    loo_a, loo_b = [], []
+    for k, s in enumerate(seeds):
+        say(f"leaving out seed {s} ({k + 1} of {len(seeds)})")
+        rest = [t for t in seeds if t != s]
+        loo_a.append(_all_scalars(figure_documents(subset(a, rest), stems, notebooks_dir)))
+        loo_b.append(_all_scalars(figure_documents(subset(b, rest), stems, notebooks_dir)))
+    se_a, se_b = jackknife(fa, loo_a), jackknife(fb, loo_b)
+    shift_full = {k: fb[k] - fa[k] for k in fa if k in fb}
+    se_d = jackknife(shift_full, [{k: lb.get(k, math.nan) - la.get(k, math.nan) for k in shift_full}
+                                  for la, lb in zip(loo_a, loo_b)])
+    rows = []
+    for key, d in shift_full.items():
+        stem, name = key.split(".", 1)
+        comb = math.hypot(se_a[key], se_b[key])
+        rows.append({"figure": stem, "key": name, "ref": fa[key], "value": fb[key], "shift": d,
+                     "se_ref": se_a[key], "se": se_b[key],
+                     "sigma": _in_sigma(d, comb), "se_paired": se_d[key],
+                     "sigma_paired": _in_sigma(d, se_d[key])})
+    t = pd.DataFrame(rows)
+    t["moved"] = t["sigma"].abs() > SIGMA_LIMIT
+    return t, na, nb
+
+
+def _in_sigma(shift: float, se: float) -> float:
+    if shift == 0.0:
+        return 0.0
+    if not (math.isfinite(shift) and math.isfinite(se)) or se == 0.0:
+        return math.nan
+    return shift / se
+
+
+# ----------------------------------------------------------------------------------------------
+# pile against pile
+
+
+def per_seed(ens, numbers_fig2: dict) -> pd.DataFrame:
+    """Per run of ``ens`` the ``PER_SEED`` numbers (preparation.per_run_table, with Fig. 2's
+    first onsets and its avalanche angle, the first large slide at ``avalanche_ke``)."""
+    from .preparation import per_run_table
+    onset = np.asarray([_nan(v) for v in numbers_fig2["theta_m_per_run"]], float)
+    slide = np.asarray([_nan(v) for v in numbers_fig2["theta_avalanche_per_run"]], float)
+    t = per_run_table(ens, onset, slide)
+    return t[["run", *PER_SEED]]
+
+
+def _nan(v) -> float:
+    return math.nan if v is None else float(v)
+
+
+def pile_against_pile(ref, ens, fig2_ref: dict, fig2: dict, confidence: float = 0.95) -> dict:
+    """Per seed of the two ensembles (the same seeds, ``subset`` to them): each ``PER_SEED``
+    number of both and their difference (``ens`` - ``ref``), and per number the mean difference
+    with a bootstrap interval over the seeds that have both values (``n``). fig2_ref, fig2: the
+    Fig. 2 numbers of each ensemble on these seeds (of :func:`figure_documents`)."""
+    ta, tb = per_seed(ref, fig2_ref), per_seed(ens, fig2)
+    if list(ta["run"]) != list(tb["run"]):
+        raise ValueError("pile against pile needs the same seeds in the same order")
+    out = {"seeds": [int(s) for s in ta["run"]], "per_seed": {}, "difference": {}}
+    for c in PER_SEED:
+        x, y = ta[c].to_numpy(float), tb[c].to_numpy(float)
+        d = y - x
+        ci = bootstrap_ci(d, confidence=confidence)
+        out["per_seed"][c] = {"ref": x.tolist(), "value": y.tolist(), "difference": d.tolist()}
+        out["difference"][c] = {"mean": ci["estimate"], "ci_low": ci["low"], "ci_high": ci["high"],
+                                "n": ci["n"], "median": float(np.nanmedian(d)) if np.isfinite(d).any()
+                                else math.nan}
+    return out
+
+
+# ----------------------------------------------------------------------------------------------
+# the study
+
+
+def study(ref, ens, ref_label: str, label: str, notebooks_dir="notebooks", progress=None) -> dict:
+    """The whole comparison (module docstring) as one JSON-able document: the labels, the
+    common seeds, ``pile_against_pile``, the ensemble table as rows, the count of numbers moved by
+    more than SIGMA_LIMIT, and ``documents``: {label: {stem: figure document}} of both on the
+    common seeds (for the report's judges)."""
+    table, na, nb = ensemble_against_ensemble(ref, ens, FIGURES, notebooks_dir, progress)
+    seeds = common_seeds(ref, ens)
+    a, b = subset(ref, seeds), subset(ens, seeds)
+    fig2 = "fig2_avalanche_criterion"
+    pp = pile_against_pile(a, b, na[fig2]["numbers"], nb[fig2]["numbers"])
+    finite = table[np.isfinite(table["sigma"])]
+    return {"study": NAME, "ref": ref_label, "label": label, "seeds": seeds,
+            "sigma_limit": SIGMA_LIMIT,
+            "n_numbers": int(len(table)), "n_with_error": int(len(finite)),
+            "n_moved": int(table["moved"].sum()),
+            "moved": table.loc[table["moved"], ["figure", "key"]].to_dict("records"),
+            "pile_against_pile": pp,
+            "numbers": table.to_dict("records"),
+            "documents": {ref_label: na, label: nb}}
+
+
+def write_study(doc: dict, out_dir) -> Path:
+    """Write ``out_dir/same_piles.json`` (NaN as null) and, per side, the figure documents as
+    ``out_dir/<label>/<stem>.json`` (what ``tiltpile report`` reads). Returns the study's path."""
+    out = Path(out_dir)
+    for label, docs in doc["documents"].items():
+        d = out / label
+        d.mkdir(parents=True, exist_ok=True)
+        for stem, fig_doc in docs.items():
+            style.write_json(d / f"{stem}.json", fig_doc)
+    body = {k: v for k, v in doc.items() if k != "documents"}
+    path = out / f"{NAME}.json"
+    style.write_json(path, style.jsonable(body))
+    return path

@@ -1,0 +1,99 @@
+"""The same piles under two settings (tiltpile.figures.same_piles, ``tiltpile same-piles``).
+
+The figure numbers it compares must be those ``make figures`` writes: on the session's smoke
+ensemble, the documents it computes from the notebooks' own cells equal, key for key, the JSON the
+notebook writes through papermill. The jackknife error of a mean is the standard error of the
+mean; an ensemble against itself moves nothing, and a known shift is measured as that shift.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from dataclasses import replace
+
+import numpy as np
+import pytest
+
+from tiltpile.figures import data
+from tiltpile.figures import same_piles as sp
+
+FAST = ("fig2_avalanche_criterion", "fig4_cluster_isostaticity")
+
+
+@pytest.fixture(scope="module")
+def ens(smoke_ensemble):
+    return data.load(smoke_ensemble, "smoke", cutoff=0.02, lost_gap=None)
+
+
+@pytest.mark.slow
+@pytest.mark.parametrize("stem", FAST)
+def test_documents_are_the_notebooks_json(stem, ens, smoke_ensemble, tmp_path):
+    from test_notebooks import NOTEBOOK_DIR, execute
+    execute(NOTEBOOK_DIR / f"{stem}.ipynb", smoke_ensemble, tmp_path)
+    written = json.loads((tmp_path / f"{stem}.json").read_text())
+    assert sp.figure_documents(ens, (stem,))[stem] == written
+
+
+def test_jackknife_of_a_mean_is_its_standard_error():
+    x = np.array([1.0, 4.0, 2.5, 7.0, 3.0])
+    loo = [{"m": float(np.delete(x, i).mean())} for i in range(x.size)]
+    se = sp.jackknife({"m": float(x.mean())}, loo)["m"]
+    assert se == pytest.approx(x.std(ddof=1) / math.sqrt(x.size), rel=1e-12)
+    # a number that one left-out run makes undefined has no error
+    assert math.isnan(sp.jackknife({"m": 1.0}, loo[:-1] + [{"m": math.nan}])["m"])
+
+
+def test_subset_and_common_seeds(ens):
+    sub = sp.subset(ens, ens.seeds[:2])
+    assert sub.seeds == ens.seeds[:2] and set(sub.frames["run"]) == set(ens.seeds[:2])
+    assert set(sub.clusters["run"]) <= set(ens.seeds[:2]) and sub.meta["n_runs"] == 2
+    assert sp.common_seeds(ens, sub) == ens.seeds[:2]
+    with pytest.raises(ValueError, match=r"seeds \[99\] are not in the ensemble"):
+        sp.subset(ens, [99])
+
+
+def test_an_ensemble_against_itself_moves_nothing(ens):
+    table, na, nb = sp.ensemble_against_ensemble(ens, ens, FAST)
+    assert na == nb and len(table) > 20
+    assert (table["shift"].fillna(0.0) == 0.0).all() and not table["moved"].any()
+    assert (table["sigma"].dropna() == 0.0).all()
+
+
+def test_a_known_shift_is_measured(ens):
+    """Every grain's z raised by 0.1: Fig. 2's <z> moves by 0.1 exactly, a number the shift does
+    not touch (the first onsets) stays, and the paired error of a uniform shift is 0."""
+    f = ens.frames.copy()
+    f["z"] = f["z"] + 0.1
+    shifted = replace(ens, frames=f)
+    table, _, _ = sp.ensemble_against_ensemble(ens, shifted, ("fig2_avalanche_criterion",))
+    t = table.set_index("key")
+    assert t.loc["z_quiet_mean", "shift"] == pytest.approx(0.1, abs=1e-12)
+    assert t.loc["z_quiet_mean", "se_paired"] == pytest.approx(0.0, abs=1e-12)
+    assert t.loc["theta_m_mean", "shift"] == 0.0 and t.loc["theta_m_mean", "sigma"] == 0.0
+
+
+def test_pile_against_pile(ens):
+    docs = sp.figure_documents(ens, ("fig2_avalanche_criterion",))
+    n2 = docs["fig2_avalanche_criterion"]["numbers"]
+    f = ens.frames.copy()
+    f["z"] = f["z"] + 0.25
+    pp = sp.pile_against_pile(ens, replace(ens, frames=f), n2, n2)
+    assert pp["seeds"] == list(ens.seeds)
+    assert pp["difference"]["z_quiet"]["mean"] == pytest.approx(0.25, abs=1e-12)
+    assert pp["difference"]["z_start"]["mean"] == pytest.approx(0.25, abs=1e-12)
+    assert all(d == 0.0 for d in pp["per_seed"]["n_onsets"]["difference"])
+    assert set(pp["per_seed"]) == set(sp.PER_SEED)
+
+
+def test_command_refuses_bad_input(smoke_ensemble, tmp_path, capsys):
+    from tiltpile.cli import main
+    out = tmp_path / "cmp"
+    assert main(["same-piles", str(smoke_ensemble), str(smoke_ensemble), "--out", str(out)]) == 2
+    assert "REF and DIR are the same directory" in capsys.readouterr().err
+    assert main(["same-piles", str(tmp_path / "nope"), str(smoke_ensemble), "--out", str(out)]) == 2
+    assert "no such ensemble directory" in capsys.readouterr().err
+    assert main(["same-piles", str(smoke_ensemble), str(tmp_path), "--out", str(out),
+                 "--seeds", "2"]) == 2
+    assert "--seeds must be at least 3" in capsys.readouterr().err
+    assert not out.exists()
