@@ -215,6 +215,39 @@ def test_fig2_numbers_on_known_onsets_and_energies():
     _show(fig2, d, numbers)
 
 
+def test_fig2_says_how_firm_its_picked_numbers_are():
+    """Leave-one-run-out: each left-out threshold is the threshold of the ensemble without that
+    run. In _fig2_frames the quiet energies run up the power law in run order, so run 3 alone
+    holds its top decade (1e-5..1e-4): without it the density leaves the law a decade lower, and
+    the threshold hangs on one run of three (not firm). Dealt out to the runs in turn instead,
+    every run spans the whole law and no removal moves the threshold (firm)."""
+    fr = _fig2_frames()
+    numbers, _ = fig2.compute(_ensemble(fr), slide_sustain_deg=0.1)
+    st = numbers["stability"]["ke_threshold"]
+    for k, s in enumerate((1, 2, 3)):
+        alone, _ = fig2.compute(_ensemble(fr[fr["run"] != s]), slide_sustain_deg=0.1)
+        assert st["per_run_left_out"][k] == alone["ke_threshold"]
+    assert st["per_run_left_out"][:2] == [numbers["ke_threshold"]] * 2
+    assert st["per_run_left_out"][2] < 1e-5 and not st["firm"]
+    assert st["flip_share"] == pytest.approx(1 / 3) and st["counts"] == [1, 2]
+    v = numbers["stability"]["lost_valley"]
+    assert v["n"] == 3 and v["low"] <= numbers["lost_bimodality"]["valley"] <= v["high"]
+    dealt = fr.copy()
+    av = dealt["avalanching"].to_numpy()
+    quiet = np.flatnonzero(~av)
+    ke = np.sort(dealt["ke_trans"].to_numpy()[quiet])
+    order = np.argsort(dealt["run"].to_numpy()[quiet], kind="stable")   # the runs' quiet rows
+    per_run = np.bincount(dealt["run"].to_numpy()[quiet])[1:]
+    take = np.concatenate([np.arange(r, r + 3 * m, 3)[:m] for r, m in enumerate(per_run)])
+    vals = np.empty(quiet.size)
+    vals[order] = ke[np.minimum(take, ke.size - 1)]
+    dealt.loc[quiet, "ke_trans"] = vals
+    n2, d2 = fig2.compute(_ensemble(dealt), slide_sustain_deg=0.1)
+    st2 = n2["stability"]["ke_threshold"]
+    assert st2["firm"] and st2["values"] == [n2["ke_threshold"]] and st2["counts"] == [3]
+    _show(fig2, fig2.compute(_ensemble(fr), slide_sustain_deg=0.1)[1], numbers)
+
+
 def test_fig2_reports_cutoffs_the_frame_spacing_does_not_resolve():
     # quiet frames losing 0.8% per frame: the 1% cutoff does not separate them (median > 1/2 of
     # it); reported in the numbers, no warning escapes

@@ -449,3 +449,17 @@ def test_each_committed_report_is_what_its_committed_json_gives(figures, committ
     out = tmp_path / "REPRODUCTION.md"
     report.write_report(figures, str(out))
     assert out.read_text() == (root / committed).read_text(), f"{committed} is stale: run `make reports`"
+
+
+def test_the_per_scale_table_flags_a_threshold_one_run_moves():
+    """fig2's leave-one-run-out stability reaches the per-scale table: a bistable threshold is
+    flagged with the other value and how many left-out runs give it; a firm one is not."""
+    from tiltpile.report.scales import _loo_flag, _loo_range
+    bistable = {"ke_threshold": 0.04, "stability": {"ke_threshold": {
+        "values": [4e-6, 0.04], "counts": [20, 30], "firm": False, "n": 50},
+        "lost_valley": {"low": 0.00279, "high": 0.00286}}}
+    assert _loo_flag(bistable, "ke_threshold") == " (bistable: 4.0e-06 for 20 of 50 runs left out)"
+    assert _loo_range(bistable, "lost_valley") == " (0.28%-0.29% leaving one run out)"
+    firm = {"ke_threshold": 0.04, "stability": {"ke_threshold": {
+        "values": [0.04], "counts": [50], "firm": True, "n": 50}}}
+    assert _loo_flag(firm, "ke_threshold") == "" and _loo_flag({}, "ke_threshold") == ""

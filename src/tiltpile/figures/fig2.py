@@ -36,6 +36,13 @@ the quiet frames' energies (default 30% and 80%: above the rest peak of the fres
 pile, below the energies of the frames just before failure); going up from the fitted range, the
 threshold is the lower edge of the first bin from which ``n_consecutive`` successive bins all lie
 off the line by more than ``factor`` (empty bins count as off).
+
+How firm the numbers picked from the pooled runs are (``stability``): the threshold, the ends of
+its fitted range and panel b's valley are recomputed with each run left out in turn. A bin-picked
+threshold takes a few distinct values; where one left-out run moves it (``firm`` false) panel a
+draws its other values too (dashed, with how many left-out runs give each), and the report's
+per-scale table flags it: on the cycled 4000-grain piles the departure rule sits on its factor of
+2 and the threshold is bistable (docs/figures.md).
 """
 
 from __future__ import annotations
@@ -149,6 +156,13 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
       onset_unmatched_fraction     (onset, cutoff) pairs with no onset within max_shift frames
       onset_cutoffs_unresolved     robustness cutoffs that the frame spacing does not resolve in
                                    some run (:func:`tiltpile.analysis.frame_spacing_check`)
+      stability                    leave-one-run-out of the numbers picked from the pooled runs
+                                   (:func:`tiltpile.analysis.stats.loo_stability`): ke_threshold
+                                   (per_run_left_out in seeds order, its distinct values and
+                                   their counts, flip_share, firm; low, high, jackknife_se),
+                                   ke_fit_lo, ke_fit_hi (the fitted range's ends) and
+                                   lost_valley (panel b's valley, per_run_left_out): low, high,
+                                   jackknife_se
       sample_seed
     """
     if not avalanche_ke > 0.0:
@@ -166,6 +180,8 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
     aa, avalanche_numbers = _first_slides(f, ens.seeds, th, avalanche_ke, sustain, confidence,
                                           "avalanche")
     lost_numbers, lost_data = _lost_fraction(f, cutoff, lost_bins_per_decade)         # (b)
+    stability = _stability(f, ens.seeds, dep, lost_numbers["lost_bimodality"], ke_column,
+                           ke_bins_per_decade, ke_fit_quantiles, ke_factor, ke_consecutive)
     seed = ens.sample_seed(sample_seed)
     numbers = {"cutoff": cutoff, **onset_numbers, **slide_numbers, **avalanche_numbers,
                "avalanching_fraction": float(av.mean()) if av.size else np.nan,
@@ -174,8 +190,9 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
                "ke_first_onset_per_run": _ke_at_first_onsets(f, ens.seeds, ke_column),
                **lost_numbers,
                **_robustness(f, cutoff, robustness_cutoffs, max_shift, p["merge_gap"]),
-               "sample_seed": seed}
+               "stability": stability, "sample_seed": seed}
     data = {"cutoff": cutoff, "ke_density": ke_dens, "ke_fit": dep, "ke_column": ke_column,
+            "ke_stability": stability["ke_threshold"],
             **lost_data, **_sample(f, ens.seeds, seed, sl, aa, ke_column, zn_bins)}       # (c), (d)
     return numbers, data
 
@@ -253,6 +270,40 @@ def _ke_numbers(f: pd.DataFrame, av: np.ndarray, dep: dict, ke_column: str) -> d
                 if (av & ok).any() and np.isfinite(thr) else np.nan,
                 ke_threshold_quiet_above=float(above[~av & ok].mean())
                 if (~av & ok).any() and np.isfinite(thr) else np.nan)
+
+
+def _stability(f: pd.DataFrame, seeds, dep: dict, bm: dict, ke_column: str, *ke_args) -> dict:
+    """How firm the numbers chosen from the pooled runs are: each with one run left out in turn
+    (:func:`tiltpile.analysis.stats.loo_stability`). The panel-a threshold (a bin: its distinct
+    leave-one-out values, how many left-out runs give each, the share whose removal flips it) and
+    the ends of its fitted range (their spread); the valley of panel b's two populations (its
+    spread), refitted from the full fit (``bimodality(init=...)``) on the same dequantized samples
+    less the run's."""
+    from tiltpile.analysis.stats import leave_one_run_out, loo_stability
+
+    def threshold(g):
+        return _st.ke_threshold(g, ke_column, *ke_args)[0]
+
+    deps = leave_one_run_out(f, seeds, threshold)
+    thr = [d["threshold"] for d in deps]
+    out = {"ke_threshold": {"per_run_left_out": thr,
+                            **loo_stability(dep["threshold"], thr, discrete=True)},
+           "ke_fit_lo": loo_stability(dep["fit_lo"], [d["fit_lo"] for d in deps]),
+           "ke_fit_hi": loo_stability(dep["fit_hi"], [d["fit_hi"] for d in deps])}
+    nl = np.where(np.isfinite(f["lost_fraction"].to_numpy(float)), f["n_lost"].to_numpy(float), np.nan)
+    na = f["n_active"].to_numpy(float)
+    y = _st.dequantized_log_fraction(nl, na, seed=0)
+    ok = np.isfinite(nl) & np.isfinite(na) & (nl >= 1) & (na > 0)     # the samples y holds
+    run = f["run"].to_numpy()[ok]
+    valleys = []
+    for s in seeds:
+        if not np.isfinite(bm["valley"]):
+            valleys.append(np.nan)
+            continue
+        b = _st.bimodality(y[run != s], init=bm)
+        valleys.append(float(10 ** b["valley"]) if np.isfinite(b["valley"]) else np.nan)
+    out["lost_valley"] = {"per_run_left_out": valleys, **loo_stability(bm["valley"], valleys)}
+    return out
 
 
 def _ke_at_first_onsets(f: pd.DataFrame, seeds, ke_column: str) -> np.ndarray:
@@ -387,6 +438,19 @@ def _plot_ke(a, data: dict) -> None:
                        arrowprops=dict(arrowstyle="-|>", color=style.COLORS["avalanche"], lw=1.2))
             a.plot([], [], color=style.COLORS["avalanche"], lw=1.2,
                    label=f"threshold {dep['threshold']:.1e}".replace("e-0", "e-"))
+            # a threshold that one left-out run moves: its other values drawn too (dashed; how
+            # many left-out runs give each: the JSON's stability)
+            st = data.get("ke_stability") or {}
+            other = [v for v in st.get("values", []) if v != dep["threshold"] and np.isfinite(v)]
+            for v in other:
+                yv = 10 ** (dep["intercept"] + dep["slope"] * np.log10(v))
+                a.annotate("", xy=(v, yv * 2), xytext=(v, yv * 300),
+                           arrowprops=dict(arrowstyle="-|>", color=style.COLORS["avalanche"],
+                                           lw=0.8, ls="--"))
+            if other:
+                a.plot([], [], color=style.COLORS["avalanche"], lw=0.8, ls="--",
+                       label="one run out: " + ", ".join(f"{v:.0e}".replace("e-0", "e-")
+                                                         for v in other))
         a.legend(loc="lower left", handlelength=1.5)
     unit = {"ke_trans": r"$E_t$", "ke_rot": r"$E_r$"}.get(data["ke_column"], "E")
     a.set_xlabel(unit + r" per grain ($\rho g d^3$)")

@@ -58,10 +58,11 @@ def _scale_rows(n2: dict, doc: dict | None) -> dict[str, str]:
         "first 2% onset (deg)": _ci(n, "theta_m", ".1f", "theta_m_mean"),
         "first sustained flow (deg)": _per_run_angles(n, "slide"),
         "avalanche angle: first large slide (deg)": _per_run_angles(n, "avalanche"),
-        "KE threshold (per grain)": _f(_num(n.get("ke_threshold")), ".1e"),
+        "KE threshold (per grain)": _f(_num(n.get("ke_threshold")), ".1e")
+            + _loo_flag(n, "ke_threshold"),
         "frames losing no contact": _f(_num(n.get("lost_zero_fraction")), ".0%"),
         "Ashman D / valley depth": f"{_f(_num(b.get('ashman_d')), '.1f')} / {_f(_num(b.get('valley_depth')), '.2f')}",
-        "valley at (lost fraction)": _f(_num(b.get("valley")), ".2%"),
+        "valley at (lost fraction)": _f(_num(b.get("valley")), ".2%") + _loo_range(n, "lost_valley"),
         "cutoff in the gap (lower population above it / upper below it)":
             _gap_text(b, _num(n.get("cutoff"))),
         "<z> quiet": _ci(n, "z_quiet_run_mean", ".3f"),
@@ -69,6 +70,29 @@ def _scale_rows(n2: dict, doc: dict | None) -> dict[str, str]:
         "quiet frames below the line": _ci(n, "quiet_below_run_mean", ".1%"),
         **_cost_rows(doc),
     }
+
+
+def _loo_flag(n: dict, key: str) -> str:
+    """' (bistable: v for k of m runs left out, ...)' where leaving one run out moves a number
+    picked from bins (fig2's ``stability``), '' where it is firm or was not measured."""
+    st = (n.get("stability") or {}).get(key) or {}
+    if not st or st.get("firm", True):
+        return ""
+    full = _num(n.get(key))
+    other = [f"{_f(v, '.1e')} for {k} of {st.get('n')}" for v, k in zip(st.get("values", []),
+                                                                       st.get("counts", []))
+             if v != full]
+    kind = "bistable" if len(st.get("values", [])) == 2 else "unstable"
+    return f" ({kind}: {', '.join(other)} runs left out)"
+
+
+def _loo_range(n: dict, key: str) -> str:
+    """' (low-high leaving one run out)' of fig2's ``stability``, '' where not measured."""
+    st = (n.get("stability") or {}).get(key) or {}
+    lo, hi = _num(st.get("low")), _num(st.get("high"))
+    if not (math.isfinite(lo) and math.isfinite(hi)):
+        return ""
+    return f" ({_f(lo, '.2%')}-{_f(hi, '.2%')} leaving one run out)"
 
 
 def _cost_rows(doc: dict) -> dict[str, str]:

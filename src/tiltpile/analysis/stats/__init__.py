@@ -15,7 +15,9 @@
   power law of the quiet frames (Fig. 2a).
 * :func:`lost_fraction_edges`, :func:`bimodality` -- the lost-fraction density on bins that respect
   the integer counts, and how clearly it splits into two populations (Fig. 2b).
-* :func:`bootstrap_ci` -- confidence intervals by resampling runs (ensemble means of few runs).
+* :func:`bootstrap_ci` -- confidence intervals by resampling runs (ensemble means of few runs);
+  :func:`leave_one_run_out`, :func:`loo_stability` -- how firm a number chosen from the pooled
+  runs is when any one run is left out.
 """
 
 from __future__ import annotations
@@ -66,6 +68,8 @@ from .bootstrap import (
     bootstrap_ci,
     bootstrap_runs_ci,
     diff_ci,
+    leave_one_run_out,
+    loo_stability,
 )
 
 __all__ = [
@@ -85,6 +89,8 @@ __all__ = [
     "density_2d",
     "dequantized_log_fraction",
     "diff_ci",
+    "leave_one_run_out",
+    "loo_stability",
     "discrete_log_binned_density",
     "dz_by_size",
     "dz_distribution",

@@ -100,3 +100,37 @@ def diff_ci(x, y, confidence: float = 0.95, n_resamples: int = 9999, seed: int =
                              rng=np.random.default_rng(seed))
     out.update(low=float(res.confidence_interval.low), high=float(res.confidence_interval.high))
     return out
+
+
+def leave_one_run_out(frames, seeds, statistic) -> list:
+    """``statistic`` of the per-frame (or per-cluster) table ``frames`` with each run of ``seeds``
+    left out in turn (rows of column ``run`` equal to it dropped): one value per seed, in
+    ``seeds`` order. What a number chosen from the pooled runs (a bin of a density, a fitted
+    valley) owes to any single run."""
+    run = frames["run"].to_numpy()
+    return [statistic(frames[run != s]) for s in seeds]
+
+
+def loo_stability(full: float, values, discrete: bool = False) -> dict:
+    """How firm a number is under leave-one-run-out (``values``: one per run left out, NaN where
+    it is undefined without that run; ``full``: the number on all runs).
+
+    Returns dict low, high (smallest and largest finite value), jackknife_se (sqrt((n - 1) / n
+    sum (v_i - mean)^2), NaN if any value is not finite) and n (runs). With ``discrete`` (a number
+    picked from bins takes few values) also values (the distinct finite values, sorted), counts
+    (how many left-out runs give each), flip_share (the share of the runs whose removal changes the
+    number: a value other than ``full``, NaN included) and firm (flip_share == 0)."""
+    v = np.asarray(values, dtype=float).ravel()
+    n = int(v.size)
+    fin = v[np.isfinite(v)]
+    se = (float(np.sqrt((n - 1) / n * ((v - v.mean()) ** 2).sum()))
+          if n >= 2 and fin.size == n else float("nan"))
+    out = {"low": float(fin.min()) if fin.size else float("nan"),
+           "high": float(fin.max()) if fin.size else float("nan"), "jackknife_se": se, "n": n}
+    if discrete:
+        same = (v == full) | (np.isnan(v) & bool(np.isnan(full)))
+        distinct, counts = np.unique(fin, return_counts=True)
+        flip = float((~same).mean()) if n else float("nan")
+        out.update(values=[float(x) for x in distinct], counts=[int(c) for c in counts],
+                   flip_share=flip, firm=bool(n and flip == 0.0))
+    return out

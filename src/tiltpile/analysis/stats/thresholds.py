@@ -119,22 +119,28 @@ def lost_fraction_edges(n_lost, n_active, bins_per_decade: int | None = None) ->
 
 
 def _mixture_em(y: np.ndarray, k: int, n_init: int = 5, seed: int = 0, iters: int = 500,
-                tol: float = 1e-10) -> dict:
+                tol: float = 1e-10, init: dict | None = None) -> dict:
     """Maximum-likelihood Gaussian mixture of ``k`` components in 1D (EM, best of n_init starts
-    from quantile-spread and random means). Returns dict weights, means, sds (sorted by mean),
+    from quantile-spread and random means; with ``init``, a dict weights, means, sds of k
+    components, the one start from there). Returns dict weights, means, sds (sorted by mean),
     loglik."""
     y = np.asarray(y, dtype=float)
     rng = np.random.default_rng(seed)
     n = y.size
     floor = 1e-6 * max(float(np.std(y)), 1e-12)
     best = None
-    for start in range(n_init):
-        if start == 0:
-            mu = np.quantile(y, (np.arange(k) + 0.5) / k)
+    for start in range(1 if init is not None else n_init):
+        if init is not None:
+            mu = np.asarray(init["means"], float).copy()
+            sd = np.maximum(np.asarray(init["sds"], float), floor)
+            w = np.asarray(init["weights"], float).copy()
         else:
-            mu = rng.choice(y, size=k, replace=False)
-        sd = np.full(k, max(float(np.std(y)), floor))
-        w = np.full(k, 1.0 / k)
+            if start == 0:
+                mu = np.quantile(y, (np.arange(k) + 0.5) / k)
+            else:
+                mu = rng.choice(y, size=k, replace=False)
+            sd = np.full(k, max(float(np.std(y)), floor))
+            w = np.full(k, 1.0 / k)
         ll_old = -np.inf
         for _ in range(iters):
             logp = (np.log(w) - np.log(sd) - 0.5 * np.log(2 * np.pi)
@@ -164,7 +170,7 @@ def mixture_pdf(x, weights, means, sds) -> np.ndarray:
     return (w / (s * np.sqrt(2 * np.pi)) * np.exp(-0.5 * ((x - m) / s) ** 2)).sum(axis=-1)
 
 
-def bimodality(y, cutoff: float | None = None, seed: int = 0) -> dict:
+def bimodality(y, cutoff: float | None = None, seed: int = 0, init: dict | None = None) -> dict:
     """How clearly samples y (e.g. log10 of the lost fraction) split into two populations.
 
     One and two Gaussian components are fitted by maximum likelihood (EM). Reported:
@@ -180,7 +186,10 @@ def bimodality(y, cutoff: float | None = None, seed: int = 0) -> dict:
       (``weights``, ``means``, ``sds``), and with ``cutoff`` (same units as y)
       ``cutoff_between_means`` and ``cutoff_density_ratio`` = p(cutoff) / p(lower peak).
 
-    Non-finite samples are dropped; fewer than 10 samples give NaNs.
+    Non-finite samples are dropped; fewer than 10 samples give NaNs. ``init`` (the weights, means
+    and sds of an earlier two-component fit, e.g. of the same samples with one run more) starts
+    the two-component fit from there alone instead of from 8 starts: the fit that a small change of
+    the samples moves the earlier one to (leave-one-run-out).
     """
     y = np.asarray(y, dtype=float).ravel()
     y = y[np.isfinite(y)]
@@ -191,7 +200,7 @@ def bimodality(y, cutoff: float | None = None, seed: int = 0) -> dict:
     if y.size < 10 or np.ptp(y) == 0:
         return out
     one = _mixture_em(y, 1, n_init=1, seed=seed)
-    two = _mixture_em(y, 2, n_init=8, seed=seed)
+    two = _mixture_em(y, 2, n_init=8, seed=seed, init=init)
     n = y.size
     bic1 = -2 * one["loglik"] + 2 * np.log(n)
     bic2 = -2 * two["loglik"] + 5 * np.log(n)
