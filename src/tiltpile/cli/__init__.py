@@ -19,7 +19,7 @@ import sys
 from tiltpile import config as cfgmod
 
 COMMANDS = ("simulate", "ensemble", "observables", "verify", "report", "bench", "info", "export", "movie",
-            "repose", "zcount", "record")
+            "repose", "zcount", "record", "study")
 
 
 def build_parser() -> argparse.ArgumentParser:
