@@ -97,3 +97,11 @@ def test_the_mohr_coulomb_test_comes_with_a_friction_study(smoke):
     # the same piles at both "frictions": the measured angle does not move
     assert mc["fit"]["slope"] == pytest.approx(0.0, abs=1e-9)
     assert st.compute("scene.polydispersity", entries)["mohr_coulomb"] is None
+    from tiltpile.report.studies import render_study
+    md = "\n".join(render_study({"numbers": out, "study": {"name": "friction", "preset": "smoke",
+                                                          "runs": 3, "history": "preset"}}))
+    assert "## Parameter study: scene.mu (friction)" in md
+    assert "| 0.2 | 3 | preset |" in md and "| 1.0 | 3 | preset |" in md
+    assert "**Mohr-Coulomb.**" in md and "mu = 0.2:" in md
+    assert "measured against predicted 0.00" in md     # the same piles at both frictions
+    assert mc["verdict"] in ("flat", "consistent")   # the interval: the 3 runs' scatter

@@ -353,7 +353,8 @@ def plot(numbers: dict):
         ax.set_xlabel(numbers["key"], fontsize=6.5)
         ax.tick_params(labelsize=6)
     runs = sorted({numbers["per_value"][lab]["n_runs"] for lab in labels})
-    fig.suptitle(f"{numbers['key']}: {len(labels)} values, {'/'.join(map(str, runs))} runs each; "
+    fig.suptitle(f"{numbers['key']}: {len(labels)} values, {'/'.join(map(str, runs))} "
+                 f"run{'s' if runs != [1] else ''} each; "
                  f"points: runs, bars: mean and {100 * numbers['confidence']:g}% bootstrap "
                  "interval over runs", fontsize=7)
     return fig

@@ -227,7 +227,8 @@ def render_study(doc: dict) -> list[str]:
            if hist != "preset" else "the preset's own history")
     lines = ["", f"## Parameter study: {key} ({st.get('name', '')})", "",
              f"From `{st.get('command', 'tiltpile study')}`: preset {st.get('preset')}, "
-             f"{len(n['labels'])} values of `{key}`, {st.get('runs')} runs each, {how}. Mean "
+             f"{len(n['labels'])} values of `{key}`, {st.get('runs')} run{'' if st.get('runs') == 1 else 's'} "
+             f"each, {how}. Mean "
              f"[{100 * n['confidence']:g}% bootstrap interval over runs]; repose angles by "
              "`tiltpile repose` (" + ("fresh piles" if hist != "preset" else "the study's piles")
              + ").", ""]
