@@ -100,3 +100,35 @@ def test_the_command_refuses_a_bad_history_and_a_key_it_sets_itself(tmp_path, ca
     assert "sets the history itself" in capsys.readouterr().err
     assert main(base + ["--key", "scene.mu", "--name", "../x"]) == 2
     assert list(tmp_path.iterdir()) == []
+
+
+@pytest.mark.slow
+def test_the_history_follows_each_values_own_repose_angle(study, tmp_path):
+    """HISTORY=repose+1 on the same two values: the smoke preset has no history, so the study's
+    piles above are the fresh piles (copied, so that only the cycled runs are computed, ~1 min):
+    each value's piles are cycled twice to its own repose angle + 1 deg, and the JSON says so."""
+    import shutil
+
+    from tiltpile import config
+    from tiltpile.figures.study import history_amplitude, read_repose, repose_surface_mean
+
+    d, _ = study
+    data = tmp_path / "data"
+    for label in ("0.1", "0.3"):
+        shutil.copytree(d / "data" / label, data / f"{label}-fresh")
+    args = ("KEY=scene.polydispersity", "VALUES=0.1 0.3", "PRESET=smoke", "RUNS=1", "NAME=polyh",
+            "HISTORY=repose+1", f"DATA={data}", f"STUDY_FIGURES={tmp_path}/figures", "WORKERS=1")
+    r = _make(*args)
+    assert r.returncode == 0, r.stderr[-3000:]
+    doc = json.loads((tmp_path / "figures" / "study.json").read_text())
+    assert doc["study"]["history"] == "repose+1" and doc["study"]["history_offset_deg"] == 1.0
+    for label in ("0.1", "0.3"):
+        want = history_amplitude(repose_surface_mean(read_repose(data / f"{label}-fresh" / "repose.json")), 1.0)
+        pv = doc["numbers"]["per_value"][label]
+        assert pv["theta_rev_deg"] == want and pv["repose_piles"] == "fresh"
+        cfg = config.load("smoke", None, [f"scene.polydispersity={label}"])
+        run_cfg = json.loads((data / label / "ensemble.json").read_text())["config"]
+        assert run_cfg["protocol"]["pretilt_deg"] == [want, -want, want, -want, want, 0.0]
+        assert config.from_dict(run_cfg).scene == cfg.scene
+    assert "cycled twice to its own fresh repose angle (surface) + 1 deg" in \
+        (tmp_path / "figures" / "study.md").read_text()
