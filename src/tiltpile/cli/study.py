@@ -34,7 +34,11 @@ HISTORY_KEYS = ("protocol.cycles", "protocol.theta_rev_deg", "protocol.pretilt_d
 def add_parser(sub) -> None:
     p = sub.add_parser("study", help="a parameter study: one ensemble per value of a key, its "
                                      "figures' numbers, one figure, JSON and report section",
-                       description=__doc__.splitlines()[0].split(": ", 1)[1])
+                       description="For each value of a configuration key: the ensemble of "
+                                   "the preset with it, its repose angles, observables and "
+                                   "records; then every figure's numbers per value with "
+                                   "bootstrap intervals over runs, one figure, its JSON and a "
+                                   "report section (make study; docs/cli.md).")
     p.add_argument("--key", required=True, metavar="SECTION.KEY",
                    help="the configuration key varied, e.g. scene.mu")
     p.add_argument("--values", required=True, nargs="+", metavar="V",
