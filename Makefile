@@ -405,7 +405,7 @@ $(PREP_EXECUTED)/.zcount: $(ZCOUNT_CODE) $(PREP_EXECUTED)/.inputs \
 # KEY=scene.mu the Mohr-Coulomb test of the clusters' orientation. HISTORY=repose+D: per value
 # first the fresh piles DATA/V-fresh and their repose angle r (surface), then the study's piles
 # cycled twice to r + D deg rounded to the whole degree (the amplitudes in the JSON). A bad key
-# or value stops it before anything runs, naming it. The friction study (about 6 core-hours):
+# or value stops it before anything runs, naming it. The friction study (about 5.5 core-hours):
 # `make study KEY=scene.mu VALUES="0.2 0.4 0.5 0.8 1.0" NAME=friction HISTORY=repose+1 WORKERS=2`.
 # The runs and repose angles run first, the analysis after them with ANALYSIS_ENV.
 KEY ?=

@@ -74,6 +74,30 @@ def test_a_rerun_computes_no_run_again(study):
     assert {p: p.stat().st_mtime_ns for p in runs} == before
 
 
+def test_without_the_run_files_the_study_is_rebuilt_from_its_records(study, tmp_path):
+    import shutil
+
+    d, args = study
+    shutil.copytree(d / "figures" / "records", tmp_path / "figures" / "records")
+    args = [a for a in args if not a.startswith(("DATA=", "STUDY_FIGURES="))]
+    r = _make(*args, f"DATA={tmp_path}/nodata", f"STUDY_FIGURES={tmp_path}/figures")
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "from its records" in r.stderr and not (tmp_path / "nodata").exists()
+    new = json.loads((tmp_path / "figures" / "study.json").read_text())["numbers"]
+    assert new == json.loads((d / "figures" / "study.json").read_text())["numbers"]
+
+
+def test_records_of_another_configuration_are_refused(study, tmp_path):
+    import shutil
+
+    d, args = study
+    shutil.copytree(d / "figures" / "records" / "0.1", tmp_path / "figures" / "records" / "0.1")
+    r = _make("KEY=scene.polydispersity", "VALUES=0.1 0.3", "PRESET=default", "RUNS=1",
+              f"DATA={tmp_path}/data", f"STUDY_FIGURES={tmp_path}/figures", timeout=60)
+    assert r.returncode == 2 and "another configuration" in r.stderr
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["figures"]
+
+
 @pytest.mark.parametrize("key, values, named", [
     ("scene.polydisperse", "0.1 0.3", "scene.polydisperse"),
     ("scene.polydispersity", "0.1 1.5", "scene.polydispersity = 1.5 is out of range"),

@@ -132,6 +132,28 @@ def _check_dir(d: Path, cfg) -> None:
                           "give another --name or --data")
 
 
+def _check_records(rec: Path, args, kv: str, cfg) -> None:
+    """Refuse records of another configuration than the value's (one line): ``cfg``, or under
+    repose+D (``cfg`` None) the study's configuration at the amplitude the records' runs had."""
+    from tiltpile.figures.records import foreign_records
+    from tiltpile.record import RecordError, read_meta, record_files
+
+    files = record_files(rec) if rec.is_dir() else []
+    if not files:
+        return
+    if cfg is None:
+        try:
+            legs = read_meta(files[0])["config"].get("protocol", {}).get("pretilt_deg") or [0.0]
+        except RecordError:
+            return
+        amp = max(abs(float(a)) for a in legs)
+        cfg = _study_config(args, kv, amp) if amp > 0 else None
+    odd = foreign_records(rec, cfg.hash()) if cfg is not None else files
+    if odd:
+        raise ConfigError(f"{rec}: {odd[0].name} is a record of another configuration than this "
+                          "value's: give another --name or --figures")
+
+
 def _amplitude(rep_path: Path, offset: float) -> float | None:
     from tiltpile.figures.study import history_amplitude, read_repose, repose_surface_mean
 
@@ -164,6 +186,7 @@ def _validate(args):
     check_output(data, "--data", directory=True)
     check_output(figures, "--figures", directory=True)
     for label, value, kv, fresh, study in plans:
+        _check_records(figures / "records" / label, args, kv, study if offset is None else None)
         if offset is None:
             _check_dir(data / label, study)
         else:
