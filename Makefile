@@ -392,3 +392,34 @@ $(PREP_EXECUTED)/.zcount: $(ZCOUNT_CODE) $(PREP_EXECUTED)/.inputs \
 	@mkdir -p $(PREP_FIGURES)
 	$(ANALYSIS_ENV) $(PY) -m tiltpile zcount $(PREP_DIRS) --out $(PREP_FIGURES)/zcount $(if $(PREP_WORKERS),--workers $(PREP_WORKERS))
 	@touch $@
+
+# `make study KEY=section.key VALUES="v1 v2 ..." [PRESET=default] [RUNS=M] [WORKERS=W] [NAME=name]
+#             [HISTORY=preset|repose+D] [DATA=/path/outside/the/checkout] [STUDY_FIGURES=dir]`:
+# a parameter study (`tiltpile study`, docs/cli.md "How to study another parameter"). For each
+# value V of KEY (TOML syntax, as SET), the ensemble of PRESET with KEY=V, RUNS seeds from 0, in
+# DATA/V (DATA default data/study-NAME; NAME default the key's last part), finished runs skipped
+# and interrupted ones resumed; its repose angles DATA/V/repose.json (`tiltpile repose`, redone
+# when a run file is newer), observables and records STUDY_FIGURES/records/V/; then the figure,
+# JSON and report section STUDY_FIGURES/study.{png,pdf,json,md} (default figures/study-NAME):
+# every figure's number per run and per value with bootstrap intervals over runs, and for
+# KEY=scene.mu the Mohr-Coulomb test of the clusters' orientation. HISTORY=repose+D: per value
+# first the fresh piles DATA/V-fresh and their repose angle r (surface), then the study's piles
+# cycled twice to r + D deg rounded to the whole degree (the amplitudes in the JSON). A bad key
+# or value stops it before anything runs, naming it. The friction study (about 5.5 core-hours):
+# `make study KEY=scene.mu VALUES="0.2 0.4 0.5 0.8 1.0" NAME=friction HISTORY=repose+1 WORKERS=2`.
+# The runs and repose angles run first, the analysis after them with ANALYSIS_ENV.
+KEY ?=
+VALUES ?=
+HISTORY ?= preset
+NAME ?= $(lastword $(subst ., ,$(KEY)))
+STUDY_DATA := $(if $(filter command line,$(origin DATA)),$(DATA),data/study-$(NAME))
+STUDY_FIGURES ?= figures/study-$(NAME)
+STUDY_ARGS = --key '$(KEY)' --values $(foreach v,$(VALUES),'$(v)') --preset $(PRESET) --runs $(RUNS) \
+             --name '$(NAME)' --data '$(STUDY_DATA)' --figures '$(STUDY_FIGURES)' --history '$(HISTORY)' \
+             $(if $(WORKERS),--workers $(WORKERS))
+.PHONY: study
+study: | $(STAMP)
+	@test -n "$(strip $(KEY))" -a -n "$(strip $(VALUES))" || { echo "make study: give KEY=section.key and VALUES=\"v1 v2 ...\""; exit 2; }
+	@test -n "$(RUNS)" || { echo "unknown PRESET=$(PRESET): give RUNS=M"; exit 2; }
+	$(PY) -m tiltpile study $(STUDY_ARGS) --runs-only
+	$(ANALYSIS_ENV) $(PY) -m tiltpile study $(STUDY_ARGS)

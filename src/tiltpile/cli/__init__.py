@@ -19,7 +19,7 @@ import sys
 from tiltpile import config as cfgmod
 
 COMMANDS = ("simulate", "ensemble", "observables", "verify", "report", "bench", "info", "export", "movie",
-            "repose", "zcount", "record", "same-piles")
+            "repose", "zcount", "record", "same-piles", "study")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -196,3 +196,74 @@ def _slide_difference(ref: dict, e: dict, dd: dict) -> str:
         return ""
     return (f", first slide in the ramp {d['estimate']:+.2f} deg "
             f"[{d['low']:+.2f}, {d['high']:+.2f}]")
+
+
+# ----------------------------------------------------------------------------------------------
+# a parameter study (`tiltpile study`, `make study`)
+
+STUDY_COLUMNS = (("theta_first_onset", "first 2% onset (deg)", ".2f"),
+                 ("theta_avalanche", "avalanche angle (deg; runs)", ".2f"),
+                 ("repose_surface", "repose: surface (deg)", ".2f"),
+                 ("repose_box", "repose: box (deg)", ".2f"),
+                 ("z_quiet", "<z> quiet", ".3f"),
+                 ("n_m_quiet", "<n_m> quiet", ".4f"),
+                 ("quiet_below", "quiet below z = 3 + n_m", ".3f"),
+                 ("orientation", "cluster orientation (deg)", ".1f"),
+                 ("delta", "delta", ".2f"),
+                 ("s_max_near", "<S_max> near onset", ".1f"),
+                 ("rigid_near", "rigid share near onset", ".3f"))
+
+
+def render_study(doc: dict) -> list[str]:
+    """Markdown lines of a parameter study's section, from its JSON (``study.json`` of
+    ``tiltpile study``): how it was made, one row per value (mean [bootstrap interval over runs]
+    of every number) and, for scene.mu, the Mohr-Coulomb test of the clusters' orientation."""
+    n = doc["numbers"]
+    st = doc.get("study", {})
+    key = n["key"]
+    hist = st.get("history") or "preset"
+    how = (f"each value's piles cycled twice to its own fresh repose angle (surface) + "
+           f"{st.get('history_offset_deg'):g} deg, rounded to the whole degree"
+           if hist != "preset" else "the preset's own history")
+    lines = ["", f"## Parameter study: {key} ({st.get('name', '')})", "",
+             f"From `{st.get('command', 'tiltpile study')}`: preset {st.get('preset')}, "
+             f"{len(n['labels'])} values of `{key}`, {st.get('runs')} run{'' if st.get('runs') == 1 else 's'} "
+             f"each, {how}. Mean "
+             f"[{100 * n['confidence']:g}% bootstrap interval over runs]; repose angles by "
+             "`tiltpile repose` (" + ("fresh piles" if hist != "preset" else "the study's piles")
+             + ").", ""]
+
+    def cell(c, fmt):
+        m, lo, hi = (_num(c.get(f)) for f in ("estimate", "low", "high"))
+        if not math.isfinite(m):
+            return "n/a"
+        band = f" [{lo:{fmt}}, {hi:{fmt}}]" if math.isfinite(lo) and math.isfinite(hi) else ""
+        extra = f" ({c['n_runs_with']})" if "n_runs_with" in c else ""
+        return f"{m:{fmt}}{band}{extra}"
+
+    lines.append(f"| {key} | runs | theta_rev (deg) | "
+                 + " | ".join(h for _, h, _ in STUDY_COLUMNS) + " |")
+    lines.append("|---|---|---|" + "---|" * len(STUDY_COLUMNS))
+    for lab in n["labels"]:
+        pv = n["per_value"][lab]
+        rev = pv.get("theta_rev_deg")
+        lines.append(f"| {lab} | {pv['n_runs']} | {'preset' if rev is None else f'{rev:g}'} | "
+                     + " | ".join(cell(pv["numbers"][k], f) for k, _, f in STUDY_COLUMNS) + " |")
+    mc = n.get("mohr_coulomb")
+    if mc:
+        f = mc["fit"]
+        pairs = "; ".join(f"mu = {m:g}: {_f(_num(y), '.1f')} against {p:.1f}"
+                          for m, y, p in zip(mc["mu"], mc["measured_deg"], mc["predicted_deg"]))
+        band = (f" [{f['slope_low']:.2f}, {f['slope_high']:.2f}]"
+                if math.isfinite(_num(f.get("slope_low"))) else "")
+        word = {"consistent": "consistent with Mohr-Coulomb's slope 1",
+                "flat": "consistent with no dependence on friction, not with Mohr-Coulomb's slope 1",
+                "shallower": "below Mohr-Coulomb's slope 1 (and above 0)",
+                "steeper": "above Mohr-Coulomb's slope 1",
+                "undetermined": "undetermined (no interval: too few runs)"}[mc["verdict"]]
+        lines += ["", "**Mohr-Coulomb.** The clusters' orientation to gravity (Fig. 3's: quiet "
+                  "clusters of >= 5 grains, pooled) against 45 + 1/2 atan(mu) deg: " + pairs
+                  + f". Least-squares slope of measured against predicted {_f(_num(f['slope']), '.2f')}"
+                  + band + f" (runs resampled within each value, {f['n_resamples']} resamples), "
+                  f"intercept {_f(_num(f['intercept']), '.1f')} deg: {word}."]
+    return lines
