@@ -254,6 +254,36 @@ def test_record_command_is_idempotent(smoke_ensemble, tmp_path, capsys, monkeypa
 
 
 @pytest.mark.slow
+def test_a_record_of_a_whole_table_digest_serves_and_stays_current(smoke_ensemble, records_only,
+                                                                  tmp_path, monkeypatch):
+    """A record written with one digest of the whole table code (as the committed paper records
+    were) is read through legacy_codes: served to every figure and up to date for `tiltpile
+    record` while its columns' code is the entry's, bytes untouched; without an entry it is
+    refused and rewritten."""
+    from tiltpile.analysis import legacy_codes
+    from tiltpile.analysis.tables import column_code
+    from tiltpile.figures.records import record_status
+
+    for p in record_files(records_only):
+        r = read_record(p)
+        meta = {k: v for k, v in r.meta.items() if k != "column_code"}
+        write_record(tmp_path / p.name, meta=dict(meta, analysis_code="f" * 16), frames=r.frames,
+                     clusters=r.clusters, radius=r.radius, fixed=r.fixed,
+                     preparation=r.preparation, pictures=r.pictures)
+    before = {p.name: p.read_bytes() for p in record_files(tmp_path)}
+    monkeypatch.setattr(legacy_codes, "LEGACY", {"f" * 16: column_code()})
+    assert record_status(smoke_ensemble, tmp_path)["fresh"].all()
+    for module in FIGURES:
+        ens = data.load(tmp_path, "smoke", module.READS)
+        assert len(ens.frames) == len(data.load(records_only, "smoke", module.READS).frames)
+    assert {p.name: p.read_bytes() for p in record_files(tmp_path)} == before
+    monkeypatch.setattr(legacy_codes, "LEGACY", {})
+    assert not record_status(smoke_ensemble, tmp_path)["fresh"].any()
+    with pytest.raises(RecordError, match="a record of table code f{16}, whose columns"):
+        data.load(tmp_path, "smoke", fig2.READS)
+
+
+@pytest.mark.slow
 def test_record_command_refuses_bad_input_in_one_line(smoke_ensemble, tmp_path, capsys):
     def refused(*args, match):
         assert _cli("record", *args) == 2

@@ -103,7 +103,10 @@ def _fresh(record: Path, run_path: Path) -> bool:
     except RecordError:
         return False
     want = json.loads(json.dumps(_wanted_meta()))
-    if recorded_column_code(meta) != want.pop("column_code"):
+    held = recorded_column_code(meta) or {}
+    present = {t: [c for c, _ in cols] for t, cols in (meta.get("columns") or {}).items()}
+    if {t: {c: held.get(t, {}).get(c) for c in present.get(t, [])} for t in ("frames", "clusters")} \
+            != want.pop("column_code"):
         return False
     if any(meta.get(k) != v for k, v in want.items()):
         return False
