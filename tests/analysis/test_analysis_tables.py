@@ -119,6 +119,18 @@ def test_a_producer_reads_only_what_it_declares():
         reg.fn(tables._View({"fixed": 1, "radius": 2}, reg))
 
 
+def test_a_producer_cannot_change_what_another_gave():
+    """What producers give (and the stages' inputs) reach later producers as read-only views,
+    leaving the originals writable: no producer changes a value another one's digest covers."""
+    a = np.zeros(3)
+    given = tables._given(tables._GIVER["bulk"], {k: {"z_i": a} if k == "bulk" else 0
+                                                   for k in tables._GIVER["bulk"].gives})
+    with pytest.raises(ValueError, match="read-only"):
+        given["bulk"]["z_i"][0] = 1.0
+    a[0] = 1.0
+    assert given["bulk"]["z_i"][0] == 1.0            # a view, not a copy
+
+
 def test_the_legacy_table_code_holds_the_committed_records_columns():
     """The 58 committed records hold the whole-table digest 11ce282f6e591a47, which
     legacy_codes maps to the producers' codes: every column they hold has an entry, and every

@@ -337,10 +337,25 @@ class _View:
 
 
 def _given(producer: Producer, out: dict) -> dict:
+    """``out`` checked against what ``producer`` declares, its arrays as read-only views: a later
+    producer cannot change what an earlier one gave (its code is not in their digests)."""
     if set(out) != set(producer.gives):
         raise RuntimeError(f"{producer.fn.__name__} gave {sorted(out)}, declared "
                            f"{sorted(producer.gives)}")
-    return out
+    return _read_only(out)
+
+
+def _read_only(x):
+    """``x`` with every array (inside dicts, lists, tuples) replaced by a read-only view."""
+    if isinstance(x, np.ndarray):
+        v = x.view()
+        v.flags.writeable = False
+        return v
+    if isinstance(x, dict):
+        return {k: _read_only(v) for k, v in x.items()}
+    if isinstance(x, (tuple, list)) and type(x) in (tuple, list):
+        return type(x)(_read_only(v) for v in x)
+    return x
 
 
 def _float32(a) -> np.ndarray:
@@ -572,8 +587,9 @@ _CLUSTER_DTYPES = {"run": np.int64, "frame": np.int64, "cluster": np.int64, "siz
 
 
 def _frame_stage(inputs: dict) -> dict:
-    """Every frame-stage producer on one frame's inputs: {name: value} of all they give."""
-    q = dict(inputs)
+    """Every frame-stage producer on one frame's inputs (seen read-only): {name: value} of all
+    they give."""
+    q = _read_only(dict(inputs))
     for pr in _PRODUCERS:
         if pr.stage == "frame":
             q.update(_given(pr, pr.fn(_View(q, pr))))
@@ -667,8 +683,9 @@ def run_observables(run, run_id: int | None = None, **params) -> tuple[pd.DataFr
     rq = {"run_id": rid, "n_frames": nfr, "step": run.step, "time": run.time, "theta": theta,
           "iterations": run.iterations, "residual": run.residual,
           "cluster_frame": np.repeat(np.arange(nfr, dtype=np.int64), counts), "params": p}
-    rq.update({f"frames.{c}": frames[c].to_numpy() for c in frames.columns})
-    rq.update({f"clusters.{c}": clusters[c].to_numpy() for c in clusters.columns})
+    rq = _read_only(rq)
+    rq.update(_read_only({f"frames.{c}": frames[c].to_numpy() for c in frames.columns}))
+    rq.update(_read_only({f"clusters.{c}": clusters[c].to_numpy() for c in clusters.columns}))
     rq.update(collected)
     for pr in run_p:
         out = _given(pr, pr.fn(_View(rq, pr)))
