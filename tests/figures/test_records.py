@@ -366,7 +366,7 @@ def test_runs_takes_the_first_records_by_seed(tmp_path):
     common = [f"RECORDS={recs}", f"FIGURES={tmp_path}/figs", f"EXECUTED={ex}", f"DATA={empty}",
               f"REPORT={tmp_path}/figs/REPRODUCTION.md", "PRESET=paper"]
     plan = _make_n("RUNS=4", *common)
-    assert f"-p data_dir {recs} " in plan and "records-" not in plan
+    assert f"-p data_dir {recs} " in plan and f"{ex}/records-" not in plan
     plan = _make_n("RUNS=2", *common)
     assert f"-p data_dir {ex}/records-2 " in plan and f"-p data_dir {recs} " not in plan
     assert "first 2 of the 4 records" in plan
