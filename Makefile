@@ -338,7 +338,7 @@ PREP_PARAMS = {"data_dirs": [$(subst $(prep_space),$(prep_comma),$(foreach d,$(P
 ZCOUNT_CODE := $(wildcard src/tiltpile/__init__.py src/tiltpile/figures/__init__.py \
                           src/tiltpile/figures/style.py src/tiltpile/figures/zcount.py \
                           src/tiltpile/record.py src/tiltpile/store/*.py src/tiltpile/cli/zcount.py) \
-               $(filter-out %/ensemble_data.py %/structure.py,$(ANALYSIS))
+               $(filter-out %/ensemble_data.py %/legacy_codes.py %/structure.py,$(ANALYSIS))
 .PHONY: preparation preparation-runs zcount
 preparation-runs: | $(STAMP) check-nb
 ifeq ($(strip $(PREP_GIVEN)),)

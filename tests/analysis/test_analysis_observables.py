@@ -145,14 +145,19 @@ def test_compute_and_load_are_cached_and_incremental(tiny_run, pile_factory, con
     s3 = compute_observables(d, workers=1, progress=False)
     assert s3["status"].tolist() == ["computed", "computed"]
     assert compute_observables(d, workers=1, progress=False)["status"].tolist() == ["cached"] * 2
-    # a cache of other table code (the computation changed) is stale
-    assert ob._read_meta(d / "observables" / "run_0007.npz")["code"] == ob.table_code()
-    real = ob.table_code
+    # a cache of a column computed by other code, or lacking a column (one added since), is stale
+    assert ob._read_meta(d / "observables" / "run_0007.npz")["columns"] == ob.column_code()
+    real = ob.column_code
+    other = real()
+    other["frames"]["z"] = "0" * 16
+    fewer = real()
+    del fewer["clusters"]["speed_max"]
     try:
-        ob.table_code = lambda: "0" * 16
-        assert compute_observables(d, workers=1, progress=False)["status"].tolist() == ["computed"] * 2
+        for codes in (other, fewer):
+            ob.column_code = lambda codes=codes: codes
+            assert compute_observables(d, workers=1, progress=False)["status"].tolist() == ["computed"] * 2
     finally:
-        ob.table_code = real
+        ob.column_code = real
     assert compute_observables(d, workers=1, progress=False)["status"].tolist() == ["computed"] * 2
     # other analysis parameters are a different cache
     assert compute_observables(d, workers=1, progress=False, cutoff=0.2)["status"].tolist() == ["computed"] * 2

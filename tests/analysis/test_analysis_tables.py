@@ -1,62 +1,156 @@
-"""The tables' declarations and the digest of their code (tiltpile.analysis.tables)."""
+"""The tables' declarations, their producers and the digest of each column's code
+(tiltpile.analysis.tables, tiltpile.analysis.digest, tiltpile.analysis.legacy_codes)."""
 
+import json
+import os
 import shutil
+import subprocess
+import sys
 from pathlib import Path
 
 import numpy as np
 import pytest
 
 import tiltpile.analysis.observables as ob
-from tiltpile.analysis import tables
-from tiltpile.analysis.tables import code_digest, table_code
+from tiltpile.analysis import legacy_codes, tables
+from tiltpile.analysis.ensemble_data import record_columns
+from tiltpile.record import read_meta, record_files
 
-ANALYSIS = Path(tables.__file__).parent
+from codehelpers import add_column, edit
 
-
-@pytest.fixture
-def package(tmp_path):
-    """A scratch copy of the analysis package's modules."""
-    for f in ANALYSIS.glob("*.py"):
-        shutil.copy2(f, tmp_path / f.name)
-    return tmp_path
-
-
-def _edit(path: Path, old: str, new: str) -> None:
-    text = path.read_text()
-    assert old in text, old
-    path.write_text(text.replace(old, new, 1))
-
-
-def test_digest_is_the_installed_tables_code(package):
-    assert code_digest(package, "tables") == table_code() == code_digest(ANALYSIS, "tables")
-    assert len(table_code()) == 16
-
-
-def test_documentation_edits_keep_the_digest(package):
-    before = code_digest(package, "tables")
-    _edit(package / "contacts.py", '"""Active contacts: normal force f_n > 0.',
-          '"""Active contacts: normal force f_n > 0 (edited).')
-    _edit(package / "clusters.py", "from .contacts import contact_counts, dz_local",
-          "# a new comment\nfrom .contacts import contact_counts, dz_local  # and another")
-    _edit(package / "tables.py", '"""The observables\' tables:', '"""The tables (edited):')
-    assert code_digest(package, "tables") == before
+SRC = Path(tables.__file__).resolve().parents[2]
+ROOT = SRC.parent
+def _codes(tmp_path, *edits) -> dict:
+    """column_code() of a scratch copy of src/ after ``edits`` ((file under tiltpile/, old, new)
+    or a callable on the copy), in a fresh interpreter."""
+    src = tmp_path / "src"
+    shutil.copytree(SRC / "tiltpile", src / "tiltpile",
+                    ignore=shutil.ignore_patterns("__pycache__"))
+    for e in edits:
+        if callable(e):
+            e(src)
+        else:
+            edit(src / "tiltpile" / e[0], e[1], e[2])
+    env = dict(os.environ, PYTHONPATH=str(src))
+    out = subprocess.run([sys.executable, "-c", "import json, tiltpile.analysis.tables as t; "
+                          "print(t.__file__); print(json.dumps(t.column_code()))"],
+                         env=env, capture_output=True, text=True, check=True).stdout.splitlines()
+    assert out[0].startswith(str(src))          # the copy's code, not the installed one
+    return json.loads(out[1])
 
 
-@pytest.mark.parametrize("module, old, new", [
-    ("contacts.py", "return force[:, 0] > 0.0", "return force[:, 0] >= 0.0"),      # imported
-    ("avalanche.py", "import warnings", "import warnings\n_NEW = 1"),             # imported
-    ("tables.py", '"min_contacts": 2,', '"min_contacts": 3,'),                    # itself
+def _changed(a: dict, b: dict) -> set:
+    return {f"{t}.{c}" for t in a for c in a[t] if b[t].get(c) != a[t][c]}
+
+
+def test_the_digests_are_the_code_of_each_column(tmp_path):
+    codes = tables.column_code()
+    assert _codes(tmp_path / "copy") == codes
+    assert all(len(d) == 16 for t in codes.values() for d in t.values())
+    assert list(codes["frames"]) == tables.FRAME_COLUMNS
+    assert list(codes["clusters"]) == tables.CLUSTER_COLUMNS
+    # one producer, one digest: z and n_m share theirs, the kinetic energy has its own
+    assert codes["frames"]["z"] == codes["frames"]["n_m"] != codes["frames"]["ke_trans"]
+
+
+def test_documentation_unrelated_code_and_a_new_column_keep_the_digests(tmp_path):
+    before = tables.column_code()
+    after = _codes(tmp_path,
+                   ("analysis/contacts.py", '"""Active contacts: normal force f_n > 0.',
+                    '"""Active contacts: normal force f_n > 0 (edited).'),
+                   ("analysis/clusters.py", "from .contacts import contact_counts, dz_local",
+                    "# a new comment\nfrom .contacts import contact_counts, dz_local  # and another"),
+                   ("analysis/tables.py", '"""The observables\' tables:', '"""The tables (edited):'),
+                   ("analysis/tables.py", '"bulk grains (rattlers removed)"', '"bulk grains (edited)"'),
+                   ("analysis/structure.py", "from __future__ import annotations",
+                    "from __future__ import annotations\n_X = 2"),
+                   ("analysis/avalanche.py", "def onset_robustness(", "def _unused():\n"
+                    "    return 1\n\n\ndef onset_robustness("),
+                   add_column)
+    assert _changed(before, after) == set()
+    assert after["frames"]["n_wall_contacts"] not in before["frames"].values()
+
+
+@pytest.mark.parametrize("change, changed, kept", [
+    # the active-contact rule: every count, what follows from the lost fraction, the clusters
+    (("analysis/contacts.py", "return force[:, 0] > 0.0", "return force[:, 0] >= 0.0"),
+     {"frames.z", "frames.n_active", "frames.lost_fraction", "frames.onset", "frames.theta_m",
+      "frames.rigid_fraction", "clusters.size", "clusters.avalanching"},
+     {"frames.ke_trans", "frames.step", "frames.theta_deg", "clusters.run"}),
+    # the segmentation: onsets and what is measured from them, not the counts
+    (("analysis/avalanche.py", "MIN_LOST_CONTACTS = 3.0", "MIN_LOST_CONTACTS = 4.0"),
+     {"frames.avalanching", "frames.onset", "frames.theta_m", "frames.theta_to_onset",
+      "frames.mean_displacement", "clusters.avalanching", "clusters.theta_to_onset"},
+     {"frames.lost_fraction", "frames.z", "clusters.size", "clusters.theta_deg"}),
+    # the rigidity count: its four columns only
+    (("analysis/rigidity.py", "largest = int(np.argmax(cluster_size))",
+      "largest = int(np.argmax(cluster_size + 0))"),
+     {"frames.rigid_fraction", "frames.floppy_per_grain", "frames.rigid_spanning",
+      "frames.n_rigid_left_out"},
+     {"frames.z", "frames.lost_fraction", "frames.theta_m", "clusters.size"}),
+    # the engine: every column
+    (("analysis/tables.py", "clusters = clusters[CLUSTER_COLUMNS].astype(_CLUSTER_DTYPES)",
+      "clusters = clusters[CLUSTER_COLUMNS].astype(_CLUSTER_DTYPES).copy()"),
+     {f"frames.{c}" for c in tables.FRAME_COLUMNS} | {f"clusters.{c}" for c in tables.CLUSTER_COLUMNS},
+     set()),
+    # a parameter's default or check: no digest (caches and records compare the parameters)
+    (("analysis/tables.py", '"min_contacts": 2,', '"min_contacts": 3,'), set(),
+     {f"frames.{c}" for c in tables.FRAME_COLUMNS} | {f"clusters.{c}" for c in tables.CLUSTER_COLUMNS}),
 ])
-def test_code_edits_change_the_digest(package, module, old, new):
-    before = code_digest(package, "tables")
-    _edit(package / module, old, new)
-    assert code_digest(package, "tables") != before
+def test_code_edits_change_the_digests_of_the_columns_they_reach(tmp_path, change, changed, kept):
+    diff = _changed(tables.column_code(), _codes(tmp_path, change))
+    assert changed <= diff and not kept & diff
 
 
-def test_modules_the_tables_do_not_import_keep_the_digest(package):
-    before = code_digest(package, "tables")
-    (package / "structure.py").write_text((package / "structure.py").read_text() + "\n_X = 2\n")
-    assert code_digest(package, "tables") == before
+def test_the_segmentation_digest_changes_only_where_the_code_is_reached():
+    """The rigidity count reaches no segmentation code, the onset reaches the lost fraction."""
+    from tiltpile.analysis.digest import closure
+    rig = closure(tables._rigidity, tables._LAYOUT)
+    assert not any(k.startswith("tiltpile.analysis.avalanche") for k in rig)
+    assert "tiltpile.analysis.rigidity:rigid_clusters" in rig
+    assert "tiltpile.analysis.tables:_failure" not in closure(tables._avalanches, tables._LAYOUT)
+    onset = tables.producer_code("frames.onset")
+    assert onset == tables.producer_code("segments") != tables.producer_code("frames.lost_fraction")
+
+
+def test_a_producer_reads_only_what_it_declares():
+    reg = tables.Producer("frame", lambda q: {"x": q["fixed"]}, ("x",), ("radius",), {})
+    with pytest.raises(KeyError, match="reads 'fixed' without declaring it"):
+        reg.fn(tables._View({"fixed": 1, "radius": 2}, reg))
+
+
+def test_a_producer_cannot_change_what_another_gave():
+    """What producers give (and the stages' inputs) reach later producers as read-only views,
+    leaving the originals writable: no producer changes a value another one's digest covers."""
+    a = np.zeros(3)
+    given = tables._given(tables._GIVER["bulk"], {k: {"z_i": a} if k == "bulk" else 0
+                                                   for k in tables._GIVER["bulk"].gives})
+    with pytest.raises(ValueError, match="read-only"):
+        given["bulk"]["z_i"][0] = 1.0
+    a[0] = 1.0
+    assert given["bulk"]["z_i"][0] == 1.0            # a view, not a copy
+
+
+def test_the_legacy_table_code_holds_the_committed_records_columns():
+    """The 58 committed records hold the whole-table digest 11ce282f6e591a47, which
+    legacy_codes maps to the producers' codes: every column they hold has an entry, and every
+    figure's columns are served by them as they are (their bytes are never rewritten)."""
+    from tiltpile.figures import fig1, fig2, fig3, fig4, fig5, fig6, fig7, preparation
+    entry = legacy_codes.LEGACY["11ce282f6e591a47"]
+    paths = record_files(ROOT / "figures" / "paper" / "records") + \
+        record_files(ROOT / "figures" / "paper-fresh" / "records")
+    assert len(paths) == 58
+    for p in paths:
+        meta = read_meta(p)
+        assert meta["analysis_code"] == "11ce282f6e591a47" and "column_code" not in meta
+        for table in ("frames", "clusters"):
+            assert {c for c, _ in meta["columns"][table]} <= set(entry[table])
+        assert legacy_codes.recorded_column_code(meta) == entry
+        for reads in (fig1.READS, fig2.READS, fig3.READS, fig4.READS, fig5.READS, fig6.READS,
+                      fig7.READS, preparation.READS):
+            record_columns(p, meta, reads)
+    assert legacy_codes.recorded_column_code({"analysis_code": "0" * 16}) is None
+    assert legacy_codes.recorded_column_code({"column_code": {"frames": {}}}) == {"frames": {}}
 
 
 def test_every_column_is_declared_once_and_documented():

@@ -96,7 +96,7 @@ def test_records_give_the_same_ensemble(both, records_only):
 
 @pytest.mark.slow
 @pytest.mark.parametrize("module", FIGURES, ids=[m.__name__.rsplit(".", 1)[1] for m in FIGURES])
-def test_every_figure_computes_the_same_numbers_from_records(both, module):
+def test_every_figure_computes_the_same_numbers_from_records(both, records_only, module):
     runs, recs = both
     kw = {"delta_bootstrap": 19} if module is fig5 else {}    # fewer resamples: seconds, not a minute
     n_runs, d_runs = module.compute(runs, **kw)
@@ -104,6 +104,13 @@ def test_every_figure_computes_the_same_numbers_from_records(both, module):
     assert json.dumps(style.jsonable(n_recs), sort_keys=True) == \
         json.dumps(style.jsonable(n_runs), sort_keys=True)
     _same_tree(d_recs, d_runs, module.__name__)    # the pile pictures included
+    # with the tables holding only the columns the figure declares (as the notebooks load
+    # them): the same numbers, so that READS names every column the figure's numbers depend on
+    only = data.load(records_only, "smoke", module.READS, cutoff=0.02, lost_gap=None)
+    assert set(only.frames.columns) == set(module.READS.frames)
+    n_only, _ = module.compute(only, **kw)
+    assert json.dumps(style.jsonable(n_only), sort_keys=True) == \
+        json.dumps(style.jsonable(n_runs), sort_keys=True)
 
 
 @pytest.mark.slow
@@ -146,12 +153,40 @@ def test_records_of_another_analysis_are_refused_in_one_line(both, records_only,
         shutil.copy2(p, tmp_path / p.name)
     first = record_files(tmp_path)[0]
     r = read_record(first)
-    write_record(first, meta=dict(r.meta, analysis_code="0" * 16),
+    legacy = {k: v for k, v in r.meta.items() if k != "column_code"}
+    write_record(first, meta=dict(legacy, analysis_code="0" * 16),
                  frames=r.frames, clusters=r.clusters, radius=r.radius, fixed=r.fixed,
                  preparation=r.preparation, pictures=r.pictures)
     with pytest.raises(RecordError) as e:
         data.load_ensemble(tmp_path, "smoke")
     assert "table code 0000000000000000" in str(e.value) and "\n" not in str(e.value)
+    # a record whose column z other code computed: refused by a reader of z, naming it, and
+    # served to a reader of other columns
+    codes = json.loads(json.dumps(r.meta["column_code"]))
+    codes["frames"]["z"] = "0" * 16
+    write_record(first, meta=dict(r.meta, column_code=codes),
+                 frames=r.frames, clusters=r.clusters, radius=r.radius, fixed=r.fixed,
+                 preparation=r.preparation, pictures=r.pictures)
+    with pytest.raises(RecordError) as e:
+        data.load(tmp_path, "smoke", fig4.READS)
+    assert str(e.value).startswith(f"Fig. 4 ({tmp_path}) needs column frames.z; its records hold "
+                                   "it as other code computed it") and "\n" not in str(e.value)
+    assert "the run files are needed" in str(e.value)
+    with pytest.raises(RecordError, match="needs column frames.z"):
+        data.load(tmp_path, "smoke")                  # every column
+    ens = data.load(tmp_path, "smoke", fig5.READS)
+    assert list(ens.frames.columns) == list(fig5.READS.frames) and "z" not in ens.frames
+    # a column the records predate (a record written before it was added)
+    write_record(first, meta=r.meta, frames=r.frames.drop(columns="theta_m"),
+                 clusters=r.clusters, radius=r.radius, fixed=r.fixed,
+                 preparation=r.preparation, pictures=r.pictures)
+    with pytest.raises(RecordError, match=r"^Fig. 2 \(.*\) needs column frames.theta_m; its "
+                                          r"records predate it; the run files are needed"):
+        data.load(tmp_path, "smoke", fig2.READS)
+    assert len(data.load(tmp_path, "smoke", fig4.READS).frames) == len(recs.frames)
+    # a column the writer leaves out
+    with pytest.raises(RecordError, match="needs column clusters.x_com; its records leave it out"):
+        data.load(tmp_path, "smoke", data.Reads("a study", clusters=("x_com",)))
     # a damaged record: a flipped bit in the pictures, which no table needs, is seen too
     shutil.copy2(record_files(records_only)[0], first)
     with zipfile.ZipFile(first) as zf:
@@ -216,6 +251,36 @@ def test_record_command_is_idempotent(smoke_ensemble, tmp_path, capsys, monkeypa
     over = [n for n, (data, _) in sorted(before.items()) if len(data) > budget]
     assert "run_0002.npz" in over
     assert [line.split("warning: ")[1].split(" is ")[0] for line in warned] == [str(out / n) for n in over]
+
+
+@pytest.mark.slow
+def test_a_record_of_a_whole_table_digest_serves_and_stays_current(smoke_ensemble, records_only,
+                                                                  tmp_path, monkeypatch):
+    """A record written with one digest of the whole table code (as the committed paper records
+    were) is read through legacy_codes: served to every figure and up to date for `tiltpile
+    record` while its columns' code is the entry's, bytes untouched; without an entry it is
+    refused and rewritten."""
+    from tiltpile.analysis import legacy_codes
+    from tiltpile.analysis.tables import column_code
+    from tiltpile.figures.records import record_status
+
+    for p in record_files(records_only):
+        r = read_record(p)
+        meta = {k: v for k, v in r.meta.items() if k != "column_code"}
+        write_record(tmp_path / p.name, meta=dict(meta, analysis_code="f" * 16), frames=r.frames,
+                     clusters=r.clusters, radius=r.radius, fixed=r.fixed,
+                     preparation=r.preparation, pictures=r.pictures)
+    before = {p.name: p.read_bytes() for p in record_files(tmp_path)}
+    monkeypatch.setattr(legacy_codes, "LEGACY", {"f" * 16: column_code()})
+    assert record_status(smoke_ensemble, tmp_path)["fresh"].all()
+    for module in FIGURES:
+        ens = data.load(tmp_path, "smoke", module.READS)
+        assert len(ens.frames) == len(data.load(records_only, "smoke", module.READS).frames)
+    assert {p.name: p.read_bytes() for p in record_files(tmp_path)} == before
+    monkeypatch.setattr(legacy_codes, "LEGACY", {})
+    assert not record_status(smoke_ensemble, tmp_path)["fresh"].any()
+    with pytest.raises(RecordError, match="a record of table code f{16}, whose columns"):
+        data.load(tmp_path, "smoke", fig2.READS)
 
 
 @pytest.mark.slow
@@ -301,7 +366,7 @@ def test_runs_takes_the_first_records_by_seed(tmp_path):
     common = [f"RECORDS={recs}", f"FIGURES={tmp_path}/figs", f"EXECUTED={ex}", f"DATA={empty}",
               f"REPORT={tmp_path}/figs/REPRODUCTION.md", "PRESET=paper"]
     plan = _make_n("RUNS=4", *common)
-    assert f"-p data_dir {recs} " in plan and "records-" not in plan
+    assert f"-p data_dir {recs} " in plan and f"{ex}/records-" not in plan
     plan = _make_n("RUNS=2", *common)
     assert f"-p data_dir {ex}/records-2 " in plan and f"-p data_dir {recs} " not in plan
     assert "first 2 of the 4 records" in plan

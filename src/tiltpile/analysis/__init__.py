@@ -9,6 +9,10 @@ Modules (imports point down; none reads HDF5 except through :mod:`tiltpile.store
 ``avalanche``    quiet / avalanching periods, onsets, theta_m, theta - theta_m, cutoff robustness
 ``stats``        log-binned densities, P(s) maximum-likelihood fit, C(tau), failure enhancement,
                  delta z versus cluster size
+``tables``       the per-frame and per-cluster columns, each declared once and computed by one
+                 registered producer, with the digest of its code (``column_code``)
+``digest``       the digest of the code a function reaches (what ``column_code`` is made of)
+``legacy_codes`` the column codes of records written with one digest of the whole table code
 ``observables``  per-run tables (per frame, per cluster), cached beside the runs; per-run onsets
                  (first 2% onset, first large slide: ``run_table``)
 ``zcount``       z = 2 N_c / N under other counting rules (force and gap thresholds, walls,
@@ -62,7 +66,7 @@ from .contacts import (
     rattler_mask,
     top_layer,
 )
-from .tables import table_code  # noqa: F401
+from .tables import column_code  # noqa: F401
 from .observables import (
     CLUSTER_COLUMNS,
     DEFAULT_PARAMS,

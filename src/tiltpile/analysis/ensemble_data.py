@@ -9,6 +9,14 @@ A directory without run files may hold their records instead (``run_SSSS.npz``,
 :mod:`tiltpile.record`, written by ``tiltpile record``): the same tables at the default analysis
 parameters (without the cluster columns no figure reads), the same configuration, seeds and
 description, and the frames of the pile pictures.
+
+A reader (a figure, a study) declares the columns it reads (:class:`Reads`) and gets tables of
+those columns only, from run files and records alike, so that a column it reads undeclared fails
+where it is read. From records, only the declared columns are checked: a record serves a column
+when it holds it computed by the code this tiltpile computes it with (per-column digests,
+:func:`tiltpile.analysis.tables.column_code`; records of the whole-table digest through
+:mod:`tiltpile.analysis.legacy_codes`). A column the records lack or hold from other code is
+refused in one line naming it: the run files are needed for it.
 """
 
 from __future__ import annotations
@@ -20,8 +28,43 @@ import numpy as np
 import pandas as pd
 
 from tiltpile import __version__
+from tiltpile.analysis.legacy_codes import recorded_column_code
 from tiltpile.analysis.observables import load_observables, run_files, table_params
-from tiltpile.analysis.tables import table_code
+from tiltpile.analysis.tables import CLUSTER_DOCS, DEFAULT_PARAMS, FRAME_DOCS, column_code
+
+# the columns every table keeps, read or not: what its rows are sorted and joined by
+KEYS = {"frames": ("run", "frame"), "clusters": ("run", "frame", "cluster")}
+
+
+@dataclass(frozen=True)
+class Reads:
+    """The table columns a reader reads: ``reader`` names it in messages ("Fig. 2"), ``frames``
+    and ``clusters`` its per-frame and per-cluster columns (FRAME_DOCS, CLUSTER_DOCS; ValueError
+    for another name). The tables' keys (``KEYS``) are always included; the columns are kept in
+    table order."""
+
+    reader: str
+    frames: tuple = ()
+    clusters: tuple = ()
+
+    def __post_init__(self):
+        for table, docs in (("frames", FRAME_DOCS), ("clusters", CLUSTER_DOCS)):
+            cols = set(getattr(self, table))
+            unknown = sorted(cols - set(docs))
+            if unknown:
+                raise ValueError(f"{self.reader} reads {table} column(s) {unknown}, which the "
+                                 "tables do not have (tiltpile.analysis.tables)")
+            object.__setattr__(self, table,
+                               tuple(c for c in docs if c in cols or c in KEYS[table]))
+
+    def __or__(self, other: "Reads") -> "Reads":
+        """What both read, named after the first reader."""
+        return Reads(self.reader, self.frames + other.frames, self.clusters + other.clusters)
+
+
+def _select(df: pd.DataFrame, columns) -> pd.DataFrame:
+    keep = set(columns)
+    return df[[c for c in df.columns if c in keep]]
 
 
 @dataclass
@@ -72,9 +115,11 @@ class Ensemble:
         return ok[0] if ok else self.seeds[0]
 
 
-def load_ensemble(data_dir, preset: str | None = None, **analysis_params) -> Ensemble:
-    """Load (computing if missing) the observables of every ``run_*.h5`` in ``data_dir``; in a
-    directory without run files, those of its records ``run_*.npz`` (:func:`load_records`).
+def load_ensemble(data_dir, preset: str | None = None, reads: Reads | None = None,
+                  **analysis_params) -> Ensemble:
+    """Load (computing if missing or stale) the observables of every ``run_*.h5`` in
+    ``data_dir``; in a directory without run files, those of its records ``run_*.npz``
+    (:func:`load_records`). With ``reads``, the tables hold only its columns.
 
     Refuses (ValueError) an ensemble whose runs have different configurations, and
     (FileNotFoundError) a directory without run files or records. ``analysis_params`` go to
@@ -87,7 +132,7 @@ def load_ensemble(data_dir, preset: str | None = None, **analysis_params) -> Ens
     files = run_files(data_dir)
     if not files:
         if record_files(data_dir):
-            return load_records(data_dir, preset, **analysis_params)
+            return load_records(data_dir, preset, reads, **analysis_params)
         raise FileNotFoundError(f"no run_*.h5 files (nor their records run_*.npz) in {data_dir}: "
                                 "run `tiltpile ensemble` first")
     hashes, seeds, cfg, costs = set(), [], None, []
@@ -100,6 +145,8 @@ def load_ensemble(data_dir, preset: str | None = None, **analysis_params) -> Ens
     if len(hashes) > 1:
         raise ValueError(f"{data_dir} mixes runs of {len(hashes)} configurations")
     frames, clusters = load_observables(data_dir, progress=False, **analysis_params)
+    if reads is not None:
+        frames, clusters = _select(frames, reads.frames), _select(clusters, reads.clusters)
     meta = _describe(preset, seeds, cfg, hashes.pop(), analysis_params, costs)
     return Ensemble(data_dir, frames, clusters, cfg, seeds, meta)
 
@@ -127,18 +174,23 @@ def _same(a, b) -> bool:
     return json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
 
 
-def load_records(data_dir, preset: str | None = None, **analysis_params) -> Ensemble:
+def load_records(data_dir, preset: str | None = None, reads: Reads | None = None,
+                 **analysis_params) -> Ensemble:
     """The ensemble of the records ``run_*.npz`` in ``data_dir`` (:mod:`tiltpile.record`): the
     same Ensemble as :func:`load_ensemble` gives from their run files, except the cluster
     columns the records leave out, with ``records`` set (pile pictures:
     :func:`tiltpile.figures.data.snapshot`).
 
-    A record holds the tables of one table code at the default parameters: records of other
-    code (:func:`tiltpile.analysis.tables.table_code`), or ``analysis_params`` that change the
-    tables (cutoff, lost_gap, ...), are
-    refused (``tiltpile.record.RecordError``, one line); so are damaged records (every member's
-    checksum is checked) and records of other format versions. Records of different
-    configurations are refused (ValueError), a directory without records is FileNotFoundError.
+    ``reads``: the columns wanted (the tables then hold those only); None: every column of the
+    tables but those the records' writer leaves out. Each wanted column must be held by every
+    record as this tiltpile computes it (:func:`tiltpile.analysis.tables.column_code`; the
+    legacy whole-table digest through :mod:`tiltpile.analysis.legacy_codes`): a column a record
+    lacks, leaves out or holds from other code is refused (``tiltpile.record.RecordError``, one
+    line naming the column and saying the run files are needed); so are records of an unknown
+    whole-table digest, ``analysis_params`` that change the tables (records hold them at the
+    default parameters: cutoff, lost_gap, ...), damaged records (every member's checksum is
+    checked) and records of other format versions. Records of different configurations are
+    refused (ValueError), a directory without records is FileNotFoundError.
     """
     from tiltpile.record import RecordError, read_record, record_files
 
@@ -148,25 +200,27 @@ def load_records(data_dir, preset: str | None = None, **analysis_params) -> Ense
         raise FileNotFoundError(f"no records run_*.npz in {data_dir}: write them with "
                                 "`tiltpile record`")
     wanted = table_params(**analysis_params)
+    who = f"{reads.reader} ({data_dir})" if reads is not None else str(data_dir)
     hashes, seeds, cfg, costs, fr, cl, records = set(), [], None, [], [], [], {}
     for path in paths:
         rec = read_record(path)    # every member, so that every checksum is checked
         m = rec.meta
-        if m.get("analysis_code") != table_code():
-            raise RecordError(f"{path}: a record of table code {m.get('analysis_code')}, this "
-                              f"tiltpile computes the tables with code {table_code()}; rewrite the "
-                              "records from the run files (`make records`, `tiltpile record`)")
-        if not _same(m.get("analysis_params"), wanted):
-            held = m.get("analysis_params") or {}
-            diff = sorted(k for k in wanted if not _same(wanted[k], held.get(k)))
+        given = m.get("analysis_params") or {}
+        # a parameter the record predates must be at its default (the code that reads it is in
+        # the digests of the columns it reaches, record_columns)
+        diff = sorted(k for k in wanted if not _same(wanted[k], given.get(k, DEFAULT_PARAMS[k])))
+        if diff:
             raise RecordError(f"{path}: records hold the tables at the default analysis parameters; "
                               f"{', '.join(f'{k}={wanted[k]!r}' for k in diff)} needs the run files")
+        need = record_columns(path, m, reads, who)
+        tables = {"frames": _select(rec.frames, need["frames"]),
+                  "clusters": _select(rec.clusters, need["clusters"])}
         hashes.add(m["config_hash"])
         seeds.append(rec.seed)
         cfg = m["config"]
         costs.append(dict(m.get("cost") or {}))
-        fr.append(rec.frames)
-        cl.append(rec.clusters)
+        fr.append(tables["frames"])
+        cl.append(tables["clusters"])
         records[rec.seed] = path
     if len(hashes) > 1:
         raise ValueError(f"{data_dir} mixes records of {len(hashes)} configurations")
@@ -175,6 +229,45 @@ def load_records(data_dir, preset: str | None = None, **analysis_params) -> Ense
     meta = _describe(preset, seeds, cfg, hashes.pop(), analysis_params, costs)
     return Ensemble(data_dir, frames.reset_index(drop=True), clusters.reset_index(drop=True), cfg,
                     seeds, meta, records)
+
+
+def record_columns(path, meta: dict, reads: Reads | None = None, who: str | None = None) -> dict:
+    """The columns a record (``path``, its ``meta``: :func:`tiltpile.record.read_meta`) serves
+    to ``reads`` (None: every column of the tables but those its writer left out): {"frames":
+    [...], "clusters": [...]}, or RecordError (one line, naming the column, ``who`` needing it
+    and that the run files are needed) for a column the record lacks, leaves out or holds from
+    other code than this tiltpile's (:func:`tiltpile.analysis.tables.column_code`), and for a
+    record of a whole-table digest :mod:`tiltpile.analysis.legacy_codes` does not know."""
+    from tiltpile.record import RecordError
+
+    path = Path(path)
+    who = who or (reads.reader if reads is not None else str(path.parent))
+    held = recorded_column_code(meta)
+    if held is None:
+        raise RecordError(f"{path}: a record of table code {meta.get('analysis_code')}, whose "
+                          "columns this tiltpile cannot tell (tiltpile.analysis.legacy_codes); "
+                          "rewrite the records from the run files (`make records`, "
+                          "`tiltpile record`)")
+    current = column_code()
+    dropped = set((meta.get("writer") or {}).get("dropped_cluster_columns") or ())
+    out = {}
+    for table in ("frames", "clusters"):
+        present = {c for c, _ in (meta.get("columns") or {}).get(table, [])}
+        need = (list(getattr(reads, table)) if reads is not None else
+                [c for c in current[table] if not (table == "clusters" and c in dropped)])
+        for c in need:
+            if c not in present:
+                why = ("its records leave it out" if table == "clusters" and c in dropped
+                       else "its records predate it")
+                raise RecordError(f"{who} needs column {table}.{c}; {why}; the run files are "
+                                  f"needed (first: {path.name})")
+            if held.get(table, {}).get(c) != current[table][c]:
+                raise RecordError(f"{who} needs column {table}.{c}; its records hold it as other "
+                                  f"code computed it (code {held.get(table, {}).get(c)}, this "
+                                  f"tiltpile's {current[table][c]}); the run files are needed "
+                                  f"(first: {path.name})")
+        out[table] = need
+    return out
 
 
 def ensemble_cost(costs: list[dict]) -> dict:

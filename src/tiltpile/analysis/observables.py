@@ -6,13 +6,14 @@ frame, and one row per critical cluster per frame.
 
 ``compute_observables(DIR)`` does this for every ``DIR/run_*.h5`` whose cache
 ``DIR/observables/run_*.npz`` is missing or stale (run file size or mtime changed, other
-analysis parameters, or other table code: :func:`tiltpile.analysis.tables.table_code`), in
-parallel processes, with a progress bar. ``load_observables(DIR)`` returns the two tables for the
+analysis parameters, or a column added or computed by other code: the per-column digests of
+:func:`tiltpile.analysis.tables.column_code`), in parallel processes, with a progress bar: where
+the run files exist, a new column is computed by the first load after it is declared. ``load_observables(DIR)`` returns the two tables for the
 whole ensemble.
 
 Cache format: one ``.npz`` per run (numpy only: no pyarrow / pytables here) holding each column
 as ``frames__<col>`` / ``clusters__<col>`` plus ``meta`` (JSON: source size, mtime, parameters,
-table code); written to a temporary name and renamed.
+``columns``: the code digest of every column); written to a temporary name and renamed.
 """
 
 from __future__ import annotations
@@ -31,7 +32,7 @@ import pandas as pd
 from . import avalanche as _av
 from .tables import (CLUSTER_COLUMNS, CLUSTER_DOCS, DEFAULT_PARAMS, FRAME_COLUMNS,  # noqa: F401
                      FRAME_DOCS, RUN_TABLE_PARAMS, _params, failure_between, frame_contacts,
-                     frame_observables, lost_between, run_observables, table_code)
+                     frame_observables, lost_between, run_observables, column_code)
 
 CACHE_DIRNAME = "observables"
 
@@ -54,7 +55,7 @@ def _source_meta(run_path: Path, params: dict) -> dict:
     st = run_path.stat()
     cached = {k: v for k, v in params.items() if k not in RUN_TABLE_PARAMS}
     return {"source": run_path.name, "size": st.st_size, "mtime_ns": st.st_mtime_ns,
-            "params": cached, "code": table_code()}
+            "params": cached, "columns": column_code()}
 
 
 def _read_meta(cache: Path) -> dict | None:
@@ -121,7 +122,8 @@ def compute_observables(ensemble_dir, workers: int | None = None, progress: bool
     """Compute and cache the observables of every run of an ensemble that needs it.
 
     Incremental: a run is (re)computed when its cache ``DIR/observables/<run>.npz`` is missing,
-    or when the run file's size or mtime, the analysis parameters or the table code changed
+    or when the run file's size or mtime, the analysis parameters or a column's code changed (or
+    a column was added)
     (``force=True`` recomputes everything). Runs are processed in parallel by ``workers``
     processes (default: number of CPUs, at most the number of pending runs; 1 = in this
     process), with a tqdm progress bar when ``progress``.

@@ -2,15 +2,40 @@
 
 Each column is declared once, with its meaning, in ``FRAME_DOCS`` and ``CLUSTER_DOCS`` (in the
 tables' column order); ``FRAME_COLUMNS`` and ``CLUSTER_COLUMNS`` are their keys and the listing
-below is written from them. Adding an observable is one declaration and the code that fills it.
+below is written from them.
 
 Every analysis parameter, with its default, is declared once in ``DEFAULT_PARAMS``; the functions
 take them as keywords (``**params``) and check them with one function.
 
-:func:`table_code` is a digest of the code that computes the tables (this module and the modules
-of this package it imports, directly or not, without docstrings and comments): the observables'
-caches and the run records are tied to it, so that a change to the computation makes them stale
-without a hand-kept version number.
+Producers
+---------
+Each column is computed by one registered *producer* (``@_produces``: a function giving one
+column or a small group, :class:`Producer`), at one of three stages: once per frame (from the
+frame's grains and contacts), once per pair of successive frames (lost contacts), once per run
+(over whole columns: the avalanches, theta_m). A producer declares what it reads (the stage's
+inputs, or what earlier producers give: columns, or intermediates such as the frame's
+``contacts``) and may read nothing else; the engine (:func:`run_observables`,
+:func:`frame_observables`) runs them in order and names none of them.
+
+Each column's *code* (:func:`column_code`) is a digest of its producer's syntax tree and of every
+function, class and constant of this package it reaches (:mod:`tiltpile.analysis.digest`;
+docstrings and comments aside), of the engine, and of the codes of what it reads (``theta_m``
+reads the segmentation, which reads ``lost_fraction``, ...). The observables' caches and the run
+records hold each column's code: a column is stale when its code changed, and only then (a
+docstring, or an edit of code the column does not reach, keeps it). Parameter values are not in
+the codes: caches and records hold the parameters and compare them. Records written before the
+codes hold one digest of the whole table code, read through
+:mod:`tiltpile.analysis.legacy_codes`.
+
+Adding an observable: its declaration in ``FRAME_DOCS`` or ``CLUSTER_DOCS``, its producer here
+(the code it needs may live in contacts.py, clusters.py, ...), and a test; then the figure that
+reads it adds it to its ``READS`` (src/tiltpile/figures/figN.py) and a notebook or study uses it.
+Nothing else changes: every other column keeps its code, so the committed records keep serving
+the figures that do not read the new column, and the observables caches compute it where the run
+files exist (``make records`` then writes it into the records); a figure reading it from records
+that predate it is refused in one line naming it. No test or document lists every column: the
+registry itself is checked at import (every declared column given by exactly one producer, every
+read given before it), and tests/codehelpers.py adds a column this way in the tests of the codes.
 
 Columns
 -------
@@ -19,12 +44,12 @@ Columns
 
 from __future__ import annotations
 
-import ast
 import functools
-import hashlib
 import os
 import re
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Callable
 
 import numpy as np
 import pandas as pd
@@ -141,64 +166,20 @@ __doc__ = __doc__.format(columns=_listing("per frame (one row per stored frame):
                                              "frame)::", CLUSTER_DOCS))
 
 
-# ----------------------------------------------------------------------------------------------
-# the digest of the computation
-
-
-def _code_only(source: str) -> str:
-    """The source's syntax tree without docstrings (comments are not in it): what it computes."""
-    tree = ast.parse(source)
-    for node in ast.walk(tree):
-        if isinstance(node, (ast.Module, ast.ClassDef, ast.FunctionDef, ast.AsyncFunctionDef)):
-            body = node.body
-            if body and isinstance(body[0], ast.Expr) and isinstance(body[0].value, ast.Constant) \
-                    and isinstance(body[0].value.value, str):
-                node.body = body[1:] or [ast.Pass()]
-    return ast.dump(tree, annotate_fields=False, include_attributes=False)
-
-
-def _local_imports(tree: ast.AST) -> set[str]:
-    """Modules of this package a module imports (``from . import x``, ``from .x import y``)."""
-    out = set()
-    for node in ast.walk(tree):
-        if isinstance(node, ast.ImportFrom) and node.level == 1:
-            out.update([node.module] if node.module else [a.name for a in node.names])
-    return out
-
-
-def code_digest(directory, module: str) -> str:
-    """Digest (16 hex digits) of ``directory/module.py`` and of every module of ``directory`` it
-    imports relatively (``from . import x``, ``from .x import y``), directly or not, each without
-    docstrings and comments."""
-    here = Path(directory)
-    todo, code = [module], {}
-    while todo:
-        name = todo.pop()
-        if name in code:
-            continue
-        source = (here / f"{name}.py").read_text(encoding="utf-8")
-        code[name] = _code_only(source)
-        todo.extend(sorted(_local_imports(ast.parse(source)) - set(code)))
-    h = hashlib.sha256()
-    for name in sorted(code):
-        h.update(name.encode() + b"\0" + code[name].encode() + b"\0")
-    return h.hexdigest()[:16]
-
-
-@functools.lru_cache(maxsize=None)
-def table_code() -> str:
-    """Digest of the code computing the tables (:func:`code_digest` of this module): the caches
-    and records of other code are stale. Documentation edits keep it."""
-    return code_digest(Path(__file__).parent, Path(__file__).stem)
-
-
-
 def _params(overrides: dict) -> dict:
+    """DEFAULT_PARAMS with ``overrides`` applied, checked (:func:`_check_params`)."""
     unknown = set(overrides) - set(DEFAULT_PARAMS)
     if unknown:
         raise TypeError(f"unknown analysis parameter(s) {sorted(unknown)}; "
                         f"allowed: {sorted(DEFAULT_PARAMS)}")
     p = dict(DEFAULT_PARAMS, **overrides)
+    _check_params(p)
+    return p
+
+
+def _check_params(p: dict) -> None:
+    """Raise (TypeError, ValueError, one line) for a parameter value out of its range. It only
+    raises, never changes ``p``: the columns' digests do not follow it (:data:`_LAYOUT`)."""
     if p["link"] not in ("contacts", "mobilized"):
         raise ValueError(f"link must be 'contacts' or 'mobilized', got {p['link']!r}")
     if p["cluster_region"] not in ("mobile", "bulk"):
@@ -211,7 +192,6 @@ def _params(overrides: dict) -> dict:
         raise ValueError(f"slide_ke must be None or > 0 (m g d per grain), got {p['slide_ke']}")
     if not p["slide_sustain_deg"] >= 0.0:
         raise ValueError(f"slide_sustain_deg must be >= 0 (deg), got {p['slide_sustain_deg']}")
-    return p
 
 
 def _open_run(path):
@@ -266,75 +246,6 @@ def frame_contacts(radius, fixed, box_length, position, pair, force, status, *, 
             "mobilized": mobil, "bulk": bulk, "top": top, "labels": labels}
 
 
-def frame_observables(radius, fixed, box_length, position, velocity, omega, pair, force, status,
-                      theta_deg, *, mu=0.5, mu_wall=None,
-                      **params) -> tuple[dict, pd.DataFrame, dict]:
-    """Observables of one frame (arrays in, scalars and a cluster table out).
-
-    radius (N,), fixed (N,) bool, box_length L, position (N, 2), velocity (N, 2), omega (N,),
-    pair (C, 2), force (C, 2) [f_n, f_t], status (C,), theta_deg; mu / mu_wall friction of grain
-    and wall contacts (only used with the threshold criterion eps); params: analysis parameters
-    (``DEFAULT_PARAMS``).
-
-    Contacts without a mobile grain (fixed-fixed, fixed-wall) are dropped first.
-
-    Returns (row, clusters, keep): row a dict of per-frame scalars (bulk z, n_m, dz_gen, ...),
-    clusters the :func:`tiltpile.analysis.clusters.cluster_table` of the frame, and keep a dict
-    of arrays needed to compare with the next frame (pair, active, labels, position).
-    """
-    fixed = np.asarray(fixed, dtype=bool)
-    n = fixed.size
-    mobile = ~fixed
-    p = _params(params)
-    fc = frame_contacts(radius, fixed, box_length, position, pair, force, status, mu=mu,
-                        mu_wall=mu_wall, **p)
-    pair, active, mobil, bulk, labels = (fc["pair"], fc["active"], fc["mobilized"], fc["bulk"],
-                                         fc["labels"])
-    bc = _ct.bulk_coordination(pair, active, mobil, bulk, fixed, p["min_contacts"])
-    z_all, n_m_all, _ = _ct.coordination(bc["z_i"], bc["m_i"], mobile & ~bc["rattler"])
-    z_full = _ct.contact_counts(n, pair, active)
-    m_full = _ct.contact_counts(n, pair, mobil)
-    ctab = _cl.cluster_table(labels, position, z_full, m_full, theta_deg)
-    # grains failing the single-grain criterion z_i - m_i / 2 >= (d + 1) / 2 (paper, Fig. 6), and
-    # the fastest grain: a cluster holding a grain that cannot be at rest (docs/figures.md, Fig. 6)
-    inc = labels >= 0
-    unstable = inc & (z_full - m_full / 2.0 < 1.5 - 1e-9)
-    speed = np.hypot(*np.asarray(velocity, dtype=float).reshape(-1, 2).T)
-    k = len(ctab)
-    ctab["n_unstable"] = np.bincount(labels[unstable], minlength=k)[:k].astype(np.int64)
-    vmax = np.zeros(k)
-    if k:
-        np.maximum.at(vmax, labels[inc], speed[inc])
-    ctab["speed_max"] = vmax
-    # the two columns without a small exact form are held to float32 precision (7 digits, far
-    # below what they resolve): a record then stores them in 4 bytes, losslessly
-    for c in FLOAT32_CLUSTER_COLUMNS:
-        ctab[c] = ctab[c].to_numpy(np.float64).astype(np.float32).astype(np.float64)
-    rest = bulk & ~bc["rattler"] & (labels < 0)
-    z_rest, _, n_rest = _ct.coordination(bc["z_i"], bc["m_i"], rest)
-    e_t, e_r = _ct.kinetic_energy(radius, velocity, omega)
-    nmob = int(mobile.sum())
-    rig = _rg.rigid_clusters(n, pair, active, mobil, fixed, min_contacts=p["min_contacts"])
-    sizes = ctab["size"].to_numpy()
-    row = {
-        "n_mobile": nmob, "n_bulk": bc["n"], "n_rattlers": bc["n_rattlers"],
-        "z": bc["z"], "n_m": bc["n_m"], "dz_gen": bc["dz_gen"],
-        "z_all": z_all, "n_m_all": n_m_all, "dz_gen_all": float(_ct.dz_gen(z_all, n_m_all)),
-        "z_rest": z_rest, "n_rest": n_rest,
-        "n_active": int(active.sum()), "n_mobilized": int(mobil.sum()),
-        "ke_trans": float(e_t[mobile].mean()) if nmob else np.nan,
-        "ke_rot": float(e_r[mobile].mean()) if nmob else np.nan,
-        "largest_cluster": int(sizes.max()) if sizes.size else 0,
-        "n_clusters": int(sizes.size), "n_in_clusters": int(sizes.sum()),
-        "cluster_fraction": float(sizes.sum() / nmob) if nmob else np.nan,
-        "rigid_fraction": rig.largest_size / nmob if nmob else np.nan,
-        "floppy_per_grain": rig.n_floppy / nmob if nmob else np.nan,
-        "rigid_spanning": _rg.spans(rig, fc["top"]),
-        "n_rigid_left_out": rig.n_left_out,
-    }
-    return row, ctab, {"pair": pair, "active": active, "labels": labels, "position": position}
-
-
 def lost_between(prev: dict, cur: dict, n: int, radius=None, box_length=None,
                  lost_gap: float | None = None) -> np.ndarray:
     """Which contacts of frame k (``prev``: pair, active, and position if ``lost_gap``) are lost
@@ -370,6 +281,359 @@ def failure_between(prev: dict, cur: dict, fixed: np.ndarray, radius=None, box_l
             "failing_in_cluster_fraction": nfc / nf if nf else np.nan}
 
 
+# ----------------------------------------------------------------------------------------------
+# the producers: one registered unit per column or small group of columns
+
+
+@dataclass(frozen=True)
+class Producer:
+    """One registered unit of the tables' computation.
+
+    stage: "frame" (once per stored frame: ``fn(q)``), "pair" (once per pair of successive
+    frames k, k + 1: ``fn(prev, cur)``, the last frame taking ``fill``) or "run" (once per run,
+    over whole columns: ``fn(q)``); gives: what ``fn`` returns, as a dict with exactly these
+    keys: table columns ``"frames.<column>"`` / ``"clusters.<column>"`` (a scalar per frame,
+    an array per cluster of the frame at the frame stage; arrays over the run at the run
+    stage), or intermediates (names without a dot) that later producers read; reads: every
+    name ``fn`` reads (an input of its stage, or what an earlier producer gives); ``q`` refuses
+    any other. A frame-stage intermediate read at the run stage arrives as the list of its
+    values over the frames.
+    """
+
+    stage: str
+    fn: Callable
+    gives: tuple
+    reads: tuple
+    fill: dict
+
+
+_PRODUCERS: list[Producer] = []
+# what the stages are given (run_observables, frame_observables)
+FRAME_INPUTS = ("radius", "fixed", "box_length", "position", "velocity", "omega", "pair", "force",
+                "status", "theta_deg", "mu", "mu_wall", "params")
+RUN_INPUTS = ("run_id", "n_frames", "step", "time", "theta", "iterations", "residual",
+              "cluster_frame", "params")
+
+
+def _produces(stage: str, gives, reads=(), fill=None):
+    """Register the decorated function as a :class:`Producer` (its digest: :func:`column_code`)."""
+    def register(fn):
+        _PRODUCERS.append(Producer(stage, fn, tuple(gives), tuple(reads), dict(fill or {})))
+        return fn
+    return register
+
+
+class _View:
+    """What a producer may read: the names it declared, nothing else."""
+
+    def __init__(self, values: dict, producer: Producer):
+        self._values, self._producer = values, producer
+
+    def __getitem__(self, name):
+        if name not in self._producer.reads:
+            raise KeyError(f"{self._producer.fn.__name__} reads {name!r} without declaring it "
+                           "(reads=...)")
+        return self._values[name]
+
+
+def _given(producer: Producer, out: dict) -> dict:
+    """``out`` checked against what ``producer`` declares, its arrays as read-only views: a later
+    producer cannot change what an earlier one gave (its code is not in their digests)."""
+    if set(out) != set(producer.gives):
+        raise RuntimeError(f"{producer.fn.__name__} gave {sorted(out)}, declared "
+                           f"{sorted(producer.gives)}")
+    return _read_only(out)
+
+
+def _read_only(x):
+    """``x`` with every array (inside dicts, lists, tuples) replaced by a read-only view."""
+    if isinstance(x, np.ndarray):
+        v = x.view()
+        v.flags.writeable = False
+        return v
+    if isinstance(x, dict):
+        return {k: _read_only(v) for k, v in x.items()}
+    if isinstance(x, (tuple, list)) and type(x) in (tuple, list):
+        return type(x)(_read_only(v) for v in x)
+    return x
+
+
+def _float32(a) -> np.ndarray:
+    """Values held to float32 precision, as float64 (a record stores them in 4 bytes losslessly)."""
+    return np.asarray(a, dtype=np.float64).astype(np.float32).astype(np.float64)
+
+
+@_produces("frame", gives=("contacts",),
+           reads=("radius", "fixed", "box_length", "position", "pair", "force", "status", "mu",
+                  "mu_wall", "params"))
+def _contacts(q):
+    """The frame's contacts as every observable sees them (:func:`frame_contacts`)."""
+    return {"contacts": frame_contacts(q["radius"], q["fixed"], q["box_length"], q["position"],
+                                       q["pair"], q["force"], q["status"], mu=q["mu"],
+                                       mu_wall=q["mu_wall"], **q["params"])}
+
+
+@_produces("frame", gives=("frames.n_mobile", "frames.n_active", "frames.n_mobilized"),
+           reads=("fixed", "contacts"))
+def _counts(q):
+    fc = q["contacts"]
+    return {"frames.n_mobile": int((~q["fixed"]).sum()), "frames.n_active": int(fc["active"].sum()),
+            "frames.n_mobilized": int(fc["mobilized"].sum())}
+
+
+@_produces("frame", gives=("bulk", "frames.n_bulk", "frames.n_rattlers", "frames.z", "frames.n_m",
+                           "frames.dz_gen"),
+           reads=("contacts", "fixed", "params"))
+def _bulk(q):
+    """Bulk z, n_m, dz_gen with rattlers removed (contacts.bulk_coordination)."""
+    fc = q["contacts"]
+    bc = _ct.bulk_coordination(fc["pair"], fc["active"], fc["mobilized"], fc["bulk"], q["fixed"],
+                               q["params"]["min_contacts"])
+    return {"bulk": bc, "frames.n_bulk": bc["n"], "frames.n_rattlers": bc["n_rattlers"],
+            "frames.z": bc["z"], "frames.n_m": bc["n_m"], "frames.dz_gen": bc["dz_gen"]}
+
+
+@_produces("frame", gives=("frames.z_all", "frames.n_m_all", "frames.dz_gen_all"),
+           reads=("bulk", "fixed"))
+def _all_grains(q):
+    bc = q["bulk"]
+    z_all, n_m_all, _ = _ct.coordination(bc["z_i"], bc["m_i"], ~q["fixed"] & ~bc["rattler"])
+    return {"frames.z_all": z_all, "frames.n_m_all": n_m_all,
+            "frames.dz_gen_all": float(_ct.dz_gen(z_all, n_m_all))}
+
+
+@_produces("frame", gives=("frames.z_rest", "frames.n_rest"), reads=("contacts", "bulk"))
+def _rest(q):
+    fc, bc = q["contacts"], q["bulk"]
+    rest = fc["bulk"] & ~bc["rattler"] & (fc["labels"] < 0)
+    z_rest, _, n_rest = _ct.coordination(bc["z_i"], bc["m_i"], rest)
+    return {"frames.z_rest": z_rest, "frames.n_rest": n_rest}
+
+
+@_produces("frame", gives=("frames.ke_trans", "frames.ke_rot"),
+           reads=("radius", "velocity", "omega", "fixed"))
+def _energy(q):
+    e_t, e_r = _ct.kinetic_energy(q["radius"], q["velocity"], q["omega"])
+    mobile = ~q["fixed"]
+    nmob = int(mobile.sum())
+    return {"frames.ke_trans": float(e_t[mobile].mean()) if nmob else np.nan,
+            "frames.ke_rot": float(e_r[mobile].mean()) if nmob else np.nan}
+
+
+@_produces("frame", gives=("grain_contacts",), reads=("fixed", "contacts"))
+def _grain_contacts(q):
+    """Per grain: active (z) and mobilized (m) contacts with every partner, (N,) each."""
+    fc, n = q["contacts"], q["fixed"].size
+    return {"grain_contacts": {"z": _ct.contact_counts(n, fc["pair"], fc["active"]),
+                               "m": _ct.contact_counts(n, fc["pair"], fc["mobilized"])}}
+
+
+_CLUSTER_TABLE = ("cluster", "size", "z", "n_m", "dz", "orientation_deg", "phi_deg", "rg_long",
+                  "rg_short", "x_com", "y_com")
+
+
+@_produces("frame", gives=tuple(f"clusters.{c}" for c in _CLUSTER_TABLE),
+           reads=("contacts", "position", "grain_contacts", "theta_deg"))
+def _cluster_table(q):
+    """clusters.cluster_table of the frame; the orientation held to float32 precision."""
+    gc = q["grain_contacts"]
+    tab = _cl.cluster_table(q["contacts"]["labels"], q["position"], gc["z"], gc["m"],
+                            q["theta_deg"])
+    out = {f"clusters.{c}": tab[c].to_numpy() for c in _CLUSTER_TABLE}
+    out["clusters.orientation_deg"] = _float32(out["clusters.orientation_deg"])
+    return out
+
+
+@_produces("frame", gives=("clusters.n_unstable",),
+           reads=("contacts", "grain_contacts", "clusters.cluster"))
+def _unstable(q):
+    """Grains failing the single-grain criterion z_i - m_i / 2 >= (d + 1) / 2 (paper, Fig. 6)."""
+    labels, gc = q["contacts"]["labels"], q["grain_contacts"]
+    k = len(q["clusters.cluster"])
+    unstable = (labels >= 0) & (gc["z"] - gc["m"] / 2.0 < 1.5 - 1e-9)
+    return {"clusters.n_unstable": np.bincount(labels[unstable], minlength=k)[:k].astype(np.int64)}
+
+
+@_produces("frame", gives=("clusters.speed_max",),
+           reads=("velocity", "contacts", "clusters.cluster"))
+def _speed(q):
+    """The fastest grain of each cluster: a cluster holding a grain that cannot be at rest
+    (docs/figures.md, Fig. 6); held to float32 precision."""
+    labels = q["contacts"]["labels"]
+    k = len(q["clusters.cluster"])
+    inc = labels >= 0
+    speed = np.hypot(*np.asarray(q["velocity"], dtype=float).reshape(-1, 2).T)
+    vmax = np.zeros(k)
+    if k:
+        np.maximum.at(vmax, labels[inc], speed[inc])
+    return {"clusters.speed_max": _float32(vmax)}
+
+
+@_produces("frame", gives=("frames.largest_cluster", "frames.n_clusters", "frames.n_in_clusters",
+                           "frames.cluster_fraction"),
+           reads=("clusters.size", "fixed"))
+def _cluster_counts(q):
+    sizes = q["clusters.size"]
+    nmob = int((~q["fixed"]).sum())
+    return {"frames.largest_cluster": int(sizes.max()) if sizes.size else 0,
+            "frames.n_clusters": int(sizes.size), "frames.n_in_clusters": int(sizes.sum()),
+            "frames.cluster_fraction": float(sizes.sum() / nmob) if nmob else np.nan}
+
+
+@_produces("frame", gives=("frames.rigid_fraction", "frames.floppy_per_grain",
+                           "frames.rigid_spanning", "frames.n_rigid_left_out"),
+           reads=("fixed", "contacts", "params"))
+def _rigidity(q):
+    """Rigid clusters of the frame (rigidity.rigid_clusters; rattlers left out)."""
+    fc, fixed = q["contacts"], q["fixed"]
+    nmob = int((~fixed).sum())
+    rig = _rg.rigid_clusters(fixed.size, fc["pair"], fc["active"], fc["mobilized"], fixed,
+                             min_contacts=q["params"]["min_contacts"])
+    return {"frames.rigid_fraction": rig.largest_size / nmob if nmob else np.nan,
+            "frames.floppy_per_grain": rig.n_floppy / nmob if nmob else np.nan,
+            "frames.rigid_spanning": _rg.spans(rig, fc["top"]),
+            "frames.n_rigid_left_out": rig.n_left_out}
+
+
+@_produces("frame", gives=("mobile_position",), reads=("position", "fixed"))
+def _mobile_position(q):
+    return {"mobile_position": q["position"][~q["fixed"]]}
+
+
+def _keep(q) -> dict:
+    """What frame k's contacts leave for comparison with frame k + 1 (failure_between)."""
+    fc = q["contacts"]
+    return {"pair": fc["pair"], "active": fc["active"], "labels": fc["labels"],
+            "position": q["position"]}
+
+
+@_produces("pair", gives=("frames.n_lost", "frames.lost_fraction", "frames.n_failing",
+                          "frames.n_failing_in_cluster", "frames.failing_in_cluster_fraction"),
+           reads=("contacts", "position", "fixed", "radius", "box_length", "params"),
+           fill={"frames.n_lost": -1, "frames.lost_fraction": np.nan, "frames.n_failing": -1,
+                 "frames.n_failing_in_cluster": -1,
+                 "frames.failing_in_cluster_fraction": np.nan})
+def _failure(prev, cur):
+    """Lost contacts and failing grains from frame k to k + 1 (:func:`failure_between`)."""
+    f = failure_between(_keep(prev), _keep(cur), prev["fixed"], prev["radius"],
+                        prev["box_length"], prev["params"]["lost_gap"])
+    return {f"frames.{k}": v for k, v in f.items()}
+
+
+@_produces("run", gives=("frames.run", "frames.frame", "frames.step", "frames.time",
+                         "frames.theta_deg", "frames.iterations", "frames.residual"),
+           reads=("run_id", "n_frames", "step", "time", "theta", "iterations", "residual"))
+def _run_source(q):
+    """What the run file says of each frame."""
+    return {"frames.run": q["run_id"], "frames.frame": np.arange(q["n_frames"], dtype=np.int64),
+            "frames.step": np.asarray(q["step"], dtype=np.int64),
+            "frames.time": np.asarray(q["time"], dtype=float), "frames.theta_deg": q["theta"],
+            "frames.iterations": np.asarray(q["iterations"]),
+            "frames.residual": np.asarray(q["residual"], dtype=float)}
+
+
+@_produces("run", gives=("segments", "frames.avalanching", "frames.onset", "frames.period"),
+           reads=("frames.lost_fraction", "frames.n_active", "n_frames", "params"))
+def _avalanches(q):
+    """Quiet periods and avalanches by the lost-fraction cutoff (avalanche.segment_avalanches)."""
+    p = q["params"]
+    seg = _av.segment_avalanches(q["frames.lost_fraction"], p["cutoff"], p["merge_gap"],
+                                 n_contacts=q["frames.n_active"])
+    onset = np.zeros(q["n_frames"], dtype=bool)
+    onset[seg["onsets"]] = True
+    return {"segments": seg, "frames.avalanching": seg["avalanching"], "frames.onset": onset,
+            "frames.period": seg["period"]}
+
+
+@_produces("run", gives=("frames.theta_m", "frames.theta_to_onset"), reads=("theta", "segments"))
+def _onset_angle(q):
+    seg = q["segments"]
+    rel = _av.theta_relative_to_onset(q["theta"], seg["avalanching"], seg["onsets"])
+    return {"frames.theta_m": rel["theta_m"], "frames.theta_to_onset": rel["theta_to_onset"]}
+
+
+@_produces("run", gives=("frames.mean_displacement", "frames.max_displacement"),
+           reads=("mobile_position", "segments"))
+def _displacement(q):
+    mean_d, max_d = _av.displacement_since_period_start(np.stack(q["mobile_position"]),
+                                                        q["segments"]["period_start"])
+    return {"frames.mean_displacement": mean_d, "frames.max_displacement": max_d}
+
+
+@_produces("run", gives=("clusters.run", "clusters.frame"), reads=("run_id", "cluster_frame"))
+def _cluster_keys(q):
+    return {"clusters.run": q["run_id"], "clusters.frame": q["cluster_frame"]}
+
+
+@_produces("run", gives=("clusters.theta_deg",), reads=("cluster_frame", "frames.theta_deg"))
+def _cluster_theta(q):
+    """The inclination of the cluster's frame."""
+    return {"clusters.theta_deg": q["frames.theta_deg"][q["cluster_frame"]]}
+
+
+@_produces("run", gives=("clusters.avalanching", "clusters.theta_to_onset"),
+           reads=("cluster_frame", "frames.avalanching", "frames.theta_to_onset"))
+def _cluster_onset_state(q):
+    """The avalanche state and theta - theta_m of the cluster's frame."""
+    fi = q["cluster_frame"]
+    return {"clusters.avalanching": q["frames.avalanching"][fi],
+            "clusters.theta_to_onset": q["frames.theta_to_onset"][fi]}
+
+
+# ----------------------------------------------------------------------------------------------
+# the engine: runs the producers in order (its own code is in every column's digest)
+
+_CLUSTER_DTYPES = {"run": np.int64, "frame": np.int64, "cluster": np.int64, "size": np.int64}
+
+
+def _frame_stage(inputs: dict) -> dict:
+    """Every frame-stage producer on one frame's inputs (seen read-only): {name: value} of all
+    they give."""
+    q = _read_only(dict(inputs))
+    for pr in _PRODUCERS:
+        if pr.stage == "frame":
+            q.update(_given(pr, pr.fn(_View(q, pr))))
+    return q
+
+
+def _frame_inputs(radius, fixed, box_length, position, velocity, omega, pair, force, status,
+                  theta_deg, mu, mu_wall, params) -> dict:
+    return {"radius": radius, "fixed": np.asarray(fixed, dtype=bool), "box_length": box_length,
+            "position": position, "velocity": velocity, "omega": omega, "pair": pair,
+            "force": force, "status": status, "theta_deg": theta_deg, "mu": mu,
+            "mu_wall": mu_wall, "params": params}
+
+
+def _split(q: dict, table: str) -> dict:
+    head = table + "."
+    return {k[len(head):]: v for k, v in q.items() if k.startswith(head)}
+
+
+def frame_observables(radius, fixed, box_length, position, velocity, omega, pair, force, status,
+                      theta_deg, *, mu=0.5, mu_wall=None,
+                      **params) -> tuple[dict, pd.DataFrame, dict]:
+    """Observables of one frame (arrays in, scalars and a cluster table out): the frame-stage
+    producers.
+
+    radius (N,), fixed (N,) bool, box_length L, position (N, 2), velocity (N, 2), omega (N,),
+    pair (C, 2), force (C, 2) [f_n, f_t], status (C,), theta_deg; mu / mu_wall friction of grain
+    and wall contacts (only used with the threshold criterion eps); params: analysis parameters
+    (``DEFAULT_PARAMS``).
+
+    Contacts without a mobile grain (fixed-fixed, fixed-wall) are dropped first.
+
+    Returns (row, clusters, keep): row a dict of the frame's per-frame columns (bulk z, n_m,
+    dz_gen, ...; not those of a pair of frames nor of the whole run), clusters its per-cluster
+    columns (a DataFrame in table order, without those of the run stage), and keep a dict of
+    arrays needed to compare with the next frame (pair, active, labels, position).
+    """
+    q = _frame_stage(_frame_inputs(radius, fixed, box_length, position, velocity, omega, pair,
+                                   force, status, theta_deg, mu, mu_wall, _params(params)))
+    cl = _split(q, "clusters")
+    return (_split(q, "frames"), pd.DataFrame({c: cl[c] for c in CLUSTER_COLUMNS if c in cl}),
+            _keep(q))
+
+
 def run_observables(run, run_id: int | None = None, **params) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Per-frame and per-cluster observables of one run (columns: FRAME_DOCS, CLUSTER_DOCS).
 
@@ -389,55 +653,129 @@ def run_observables(run, run_id: int | None = None, **params) -> tuple[pd.DataFr
     L = float(run.box_length)
     nfr = int(run.n_frames)
     theta = np.asarray(run.theta_deg, dtype=float)
-    mobile = ~fixed
-    positions = np.empty((nfr, int(mobile.sum()), 2))
-    rows, tabs = [], []
+    frame_p = [pr for pr in _PRODUCERS if pr.stage == "frame"]
+    pair_p = [pr for pr in _PRODUCERS if pr.stage == "pair"]
+    run_p = [pr for pr in _PRODUCERS if pr.stage == "run"]
+    frame_gives = {g for pr in frame_p for g in pr.gives}
+    collected = {n: [] for pr in run_p for n in pr.reads if n in frame_gives and "." not in n}
+    rows, tabs, counts = [], [], []
     prev = None
     for k in range(nfr):
-        pos = np.asarray(run.position(k), dtype=float)
-        positions[k] = pos[mobile]
         pair, force, status = run.contacts(k)
-        row, ctab, keep = frame_observables(
-            radius, fixed, L, pos, run.velocity(k), run.omega(k), pair, force, status, theta[k],
-            mu=mu, mu_wall=mu_wall, **p)
+        q = _frame_stage(_frame_inputs(radius, fixed, L, np.asarray(run.position(k), dtype=float),
+                                       run.velocity(k), run.omega(k), pair, force, status,
+                                       theta[k], mu, mu_wall, p))
+        row = _split(q, "frames")
         if prev is not None:
-            rows[-1].update(failure_between(prev, keep, fixed, radius, L, p["lost_gap"]))
-        row.update(n_lost=-1, lost_fraction=np.nan, n_failing=-1, n_failing_in_cluster=-1,
-                   failing_in_cluster_fraction=np.nan)
+            for pr in pair_p:
+                rows[-1].update(_split(_given(pr, pr.fn(_View(prev, pr), _View(q, pr))), "frames"))
+        for pr in pair_p:
+            row.update(_split(pr.fill, "frames"))
         rows.append(row)
-        ctab.insert(0, "frame", k)
-        tabs.append(ctab)
-        prev = keep
+        cl = _split(q, "clusters")
+        tabs.append(pd.DataFrame({c: cl[c] for c in CLUSTER_COLUMNS if c in cl}))
+        counts.append(len(tabs[-1]))
+        for n in collected:
+            collected[n].append(q[n])
+        prev = q
     frames = pd.DataFrame(rows)
-    frames.insert(0, "frame", np.arange(nfr, dtype=np.int64))
-    frames.insert(0, "run", rid)
-    frames["step"] = np.asarray(run.step, dtype=np.int64)
-    frames["time"] = np.asarray(run.time, dtype=float)
-    frames["theta_deg"] = theta
-    frames["iterations"] = np.asarray(run.iterations)
-    frames["residual"] = np.asarray(run.residual, dtype=float)
-    seg = _av.segment_avalanches(frames["lost_fraction"].to_numpy(), p["cutoff"], p["merge_gap"],
-                                 n_contacts=frames["n_active"].to_numpy())
-    rel = _av.theta_relative_to_onset(theta, seg["avalanching"], seg["onsets"])
-    onset = np.zeros(nfr, dtype=bool)
-    onset[seg["onsets"]] = True
-    frames["avalanching"] = seg["avalanching"]
-    frames["onset"] = onset
-    frames["period"] = seg["period"]
-    frames["theta_m"] = rel["theta_m"]
-    frames["theta_to_onset"] = rel["theta_to_onset"]
-    mean_d, max_d = _av.displacement_since_period_start(positions, seg["period_start"])
-    frames["mean_displacement"] = mean_d
-    frames["max_displacement"] = max_d
+    clusters = pd.concat(tabs, ignore_index=True) if tabs else pd.DataFrame()
+    rq = {"run_id": rid, "n_frames": nfr, "step": run.step, "time": run.time, "theta": theta,
+          "iterations": run.iterations, "residual": run.residual,
+          "cluster_frame": np.repeat(np.arange(nfr, dtype=np.int64), counts), "params": p}
+    rq = _read_only(rq)
+    rq.update(_read_only({f"frames.{c}": frames[c].to_numpy() for c in frames.columns}))
+    rq.update(_read_only({f"clusters.{c}": clusters[c].to_numpy() for c in clusters.columns}))
+    rq.update(collected)
+    for pr in run_p:
+        out = _given(pr, pr.fn(_View(rq, pr)))
+        rq.update(out)
+        for c, v in _split(out, "frames").items():
+            frames[c] = v
+        for c, v in _split(out, "clusters").items():
+            clusters[c] = v
     frames = frames[FRAME_COLUMNS]
-    clusters = pd.concat(tabs, ignore_index=True) if tabs else pd.DataFrame(columns=CLUSTER_COLUMNS)
-    fi = clusters["frame"].to_numpy(np.int64)
-    clusters.insert(0, "run", rid)
-    clusters["theta_deg"] = theta[fi]
-    clusters["avalanching"] = seg["avalanching"][fi]
-    clusters["theta_to_onset"] = rel["theta_to_onset"][fi]
-    clusters = clusters[CLUSTER_COLUMNS].astype({"run": np.int64, "frame": np.int64,
-                                                 "cluster": np.int64, "size": np.int64})
+    clusters = clusters[CLUSTER_COLUMNS].astype(_CLUSTER_DTYPES)
     return frames, clusters
 
 
+# ----------------------------------------------------------------------------------------------
+# the registry's consistency and the columns' digests
+
+# not followed by the digests (digest.closure's skip): the declarations that decide which columns
+# exist and in what order, never a value; and the analysis parameters' values and checks, which
+# caches and records hold and compare themselves (``params``, ``analysis_params``), so that a
+# parameter added at a default that keeps the old computation strands nothing by itself (the
+# code that reads it is in the digests of the columns it reaches)
+_LAYOUT = frozenset(f"{__name__}:{n}" for n in ("FRAME_DOCS", "CLUSTER_DOCS", "FRAME_COLUMNS",
+                                                "CLUSTER_COLUMNS", "FLOAT32_CLUSTER_COLUMNS",
+                                                "_PRODUCERS", "DEFAULT_PARAMS", "_check_params"))
+# the engine: what runs every producer (in every column's digest)
+_ENGINE = (run_observables, frame_observables, _frame_stage, _frame_inputs, _split, _given, _View,
+           _params, _run_id, _open_run)
+
+
+def _check_registry() -> dict:
+    """Every column given by exactly one producer, every read given before it is read.
+    Returns {name: producer} of every name given."""
+    giver: dict = {}
+    known = set(FRAME_INPUTS)
+    for stage in ("frame", "pair", "run"):
+        if stage == "run":
+            known = set(RUN_INPUTS) | {g for g in giver}
+        for pr in _PRODUCERS:
+            if pr.stage != stage:
+                continue
+            if stage != "pair":
+                missing = [r for r in pr.reads if r not in known]
+            else:
+                missing = [r for r in pr.reads if r not in known and r not in giver]
+            if missing:
+                raise RuntimeError(f"{pr.fn.__name__} reads {missing}, given by no earlier producer")
+            for g in pr.gives:
+                if g in giver:
+                    raise RuntimeError(f"{g} is given by {giver[g].fn.__name__} and {pr.fn.__name__}")
+                table, _, col = g.partition(".")
+                if col and col not in {"frames": FRAME_DOCS, "clusters": CLUSTER_DOCS}.get(table, {}):
+                    raise RuntimeError(f"{pr.fn.__name__} gives {g}, which FRAME_DOCS / "
+                                       "CLUSTER_DOCS do not declare")
+                giver[g] = pr
+                if stage != "pair":
+                    known.add(g)
+            if stage == "pair" and set(pr.fill) != set(pr.gives):
+                raise RuntimeError(f"{pr.fn.__name__}: fill must hold every column it gives")
+    for table, docs in (("frames", FRAME_DOCS), ("clusters", CLUSTER_DOCS)):
+        lost = [c for c in docs if f"{table}.{c}" not in giver]
+        if lost:
+            raise RuntimeError(f"{table} columns {lost} are declared but no producer gives them")
+    return giver
+
+
+_GIVER = _check_registry()
+
+
+@functools.lru_cache(maxsize=None)
+def producer_code(name: str) -> str:
+    """Digest (16 hex digits) of what gives ``name`` (a column ``"frames.z"`` or an
+    intermediate): the engine, the producer's code and everything of the analysis package it
+    reaches (:func:`tiltpile.analysis.digest.closure`), and the digests of what it reads."""
+    from .digest import closure, digest
+    pr = _GIVER[name]
+    engine: dict = {}
+    for unit in _ENGINE:
+        engine.update(closure(unit, _LAYOUT))
+    reads = sorted(producer_code(r) for r in pr.reads if r in _GIVER)
+    return digest([engine, closure(pr.fn, _LAYOUT), *reads])
+
+
+@functools.lru_cache(maxsize=None)
+def _column_code() -> tuple:
+    return tuple((table, tuple((c, producer_code(f"{table}.{c}")) for c in docs))
+                 for table, docs in (("frames", FRAME_DOCS), ("clusters", CLUSTER_DOCS)))
+
+
+def column_code() -> dict:
+    """{"frames": {column: digest}, "clusters": {column: digest}}: the code of every column of
+    the tables (:func:`producer_code`). A cache or record holding a column of another digest
+    holds it as other code computed it."""
+    return {table: dict(cols) for table, cols in _column_code()}

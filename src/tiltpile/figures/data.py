@@ -4,7 +4,8 @@ and what several figures read from them alike.
 :class:`Ensemble` and :func:`load_ensemble` live in :mod:`tiltpile.analysis.ensemble_data` (the
 measurement studies use them too); they are re-exported here for the notebooks.
 :func:`load` is what the notebooks call: :func:`load_ensemble` with every analysis parameter the
-notebook declares. :func:`analysis_params` gives the parameters an ensemble's tables were computed
+notebook declares and the columns its figure reads (each figure module's ``READS``, a
+:class:`Reads`: from records, only those are checked; the tables hold only those). :func:`analysis_params` gives the parameters an ensemble's tables were computed
 with, :func:`per_run_quiet` the per-run means over quiet frames (Fig. 2 and the preparation study).
 """
 
@@ -14,24 +15,25 @@ import numpy as np
 import pandas as pd
 
 from tiltpile.analysis import DEFAULT_PARAMS
-from tiltpile.analysis.ensemble_data import Ensemble, load_ensemble
+from tiltpile.analysis.ensemble_data import Ensemble, Reads, load_ensemble
 
-__all__ = ["Ensemble", "load", "load_ensemble", "snapshot", "analysis_params", "per_run_quiet",
-           "first_below", "recorded_params"]
+__all__ = ["Ensemble", "Reads", "load", "load_ensemble", "snapshot", "analysis_params",
+           "per_run_quiet", "first_below", "recorded_params"]
 
 # what a figure's JSON names under "analysis" whatever their values: the lost-contact criterion
 ALWAYS_RECORDED = ("cutoff", "lost_gap")
 
 
-def load(data_dir, preset: str | None = None, **params) -> Ensemble:
+def load(data_dir, preset: str | None = None, reads: Reads | None = None, **params) -> Ensemble:
     """The ensemble of ``data_dir`` (:func:`load_ensemble`) analysed with ``params``, any of
-    :data:`tiltpile.analysis.DEFAULT_PARAMS` (TypeError for another name). Its ``meta["analysis"]``,
-    which the figure's JSON records, names ``cutoff``, ``lost_gap`` and every other parameter
-    whose value differs from its default (the others are the defaults)."""
+    :data:`tiltpile.analysis.DEFAULT_PARAMS` (TypeError for another name), its tables holding
+    the columns ``reads`` declares (a figure's ``READS``; None: every column). Its
+    ``meta["analysis"]``, which the figure's JSON records, names ``cutoff``, ``lost_gap`` and
+    every other parameter whose value differs from its default (the others are the defaults)."""
     unknown = sorted(set(params) - set(DEFAULT_PARAMS))
     if unknown:
         raise TypeError(f"unknown analysis parameter(s) {unknown}; allowed: {sorted(DEFAULT_PARAMS)}")
-    return load_ensemble(data_dir, preset, **recorded_params(params))
+    return load_ensemble(data_dir, preset, reads, **recorded_params(params))
 
 
 def recorded_params(params: dict) -> dict:

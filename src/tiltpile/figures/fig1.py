@@ -26,7 +26,14 @@ from tiltpile.analysis import contacts as _ct
 from tiltpile.analysis.stats import bootstrap_ci, window_edges
 
 from . import data, style
+from .data import Reads
 from .snapshot import draw_snapshot, load_snapshot, pick_avalanche_frame, snapshot_extent
+
+# the table columns the figure reads (from records, only these are checked)
+READS = Reads("Fig. 1",
+              frames=("theta_deg", "z", "n_m", "dz_gen", "lost_fraction", "avalanching", "onset",
+                      "theta_m", "theta_to_onset"),
+              clusters=())
 
 NAME = "fig1_isostaticity"
 

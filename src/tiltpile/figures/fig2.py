@@ -60,7 +60,13 @@ from tiltpile.analysis.avalanche import (SPACING_LIMIT, ResolutionWarning, frame
 from tiltpile.analysis.stats import power_law_departure  # noqa: F401  (the estimator of panel a)
 
 from . import style
-from .data import analysis_params, per_run_quiet
+from .data import Reads, analysis_params, per_run_quiet
+
+# the table columns the figure reads (from records, only these are checked)
+READS = Reads("Fig. 2",
+              frames=("theta_deg", "z", "n_m", "dz_gen", "n_active", "ke_trans", "ke_rot",
+                      "n_lost", "lost_fraction", "avalanching", "onset", "theta_m"),
+              clusters=())
 
 NAME = "fig2_avalanche_criterion"
 AVALANCHE_KE = 1e-3    # m g d per mobile grain: the avalanche angle's threshold (= repose.KE_SLIDE)

@@ -33,8 +33,16 @@ import pandas as pd
 from tiltpile.analysis import stats as _st
 
 from . import style
+from .data import Reads
 from .snapshot import (SNAPSHOT_OFFSET_DEG, draw_snapshot, frame_before_onset, load_snapshot,
                        snapshot_extent)
+
+# the table columns the figure reads (from records, only these are checked)
+READS = Reads("Fig. 3",
+              frames=("theta_deg", "n_lost", "lost_fraction", "n_failing",
+                      "n_failing_in_cluster", "largest_cluster", "cluster_fraction",
+                      "avalanching", "onset", "period", "theta_m", "theta_to_onset"),
+              clusters=("avalanching", "size", "orientation_deg"))
 
 NAME = "fig3_clusters_failure"
 

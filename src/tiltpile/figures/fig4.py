@@ -29,6 +29,12 @@ from tiltpile.analysis import InsufficientDataError, dz_gen
 from tiltpile.analysis.stats import cell_density_2d
 
 from . import style
+from .data import Reads
+
+# the table columns the figure reads (from records, only these are checked)
+READS = Reads("Fig. 4",
+              frames=("z", "n_m", "z_rest", "avalanching"),
+              clusters=("avalanching", "size", "z", "n_m"))
 
 D = 2                    # dimension
 Z_ISO_MU = D + 1         # isostatic z of mu = infinity frictional packings (paper Eq. 1)

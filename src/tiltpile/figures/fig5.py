@@ -38,6 +38,12 @@ from tiltpile.analysis import (InsufficientDataError, cluster_size_windows,
 from tiltpile.analysis.stats import bootstrap_runs_ci
 
 from . import style
+from .data import Reads
+
+# the table columns the figure reads (from records, only these are checked)
+READS = Reads("Fig. 5",
+              frames=("largest_cluster", "avalanching", "theta_to_onset"),
+              clusters=("avalanching", "theta_to_onset", "size"))
 
 XI_UNCONSTRAINED = 1e6   # a fitted xi above this (the fit's bound is 1e7) is "no visible cutoff"
 

@@ -55,6 +55,14 @@ from tiltpile.analysis import dz_by_size, dz_distribution, dz_gen
 from tiltpile.analysis import stats as _st
 
 from . import style
+from .data import Reads
+
+# the table columns the figure reads (from records, only these are checked); n_unstable and
+# speed_max are optional to compute() (an older table without them leaves nothing out), never
+# to the figure
+READS = Reads("Fig. 6",
+              frames=("z", "n_m", "avalanching"),
+              clusters=("avalanching", "size", "z", "n_m", "n_unstable", "speed_max"))
 
 D = 2
 DZ_GLOBAL = 0.0                          # Eq. (1): z = z_iso^gen

@@ -31,7 +31,14 @@ from tiltpile.analysis import tables as _tb
 from tiltpile.analysis.stats import bootstrap_ci, window_edges
 
 from . import data, style
+from .data import Reads
 from .snapshot import SNAPSHOT_OFFSET_DEG, frame_before_onset, snapshot_extent
+
+# the table columns the figure reads (from records, only these are checked)
+READS = Reads("Fig. 7",
+              frames=("theta_deg", "dz_gen", "rigid_fraction", "floppy_per_grain",
+                      "rigid_spanning", "avalanching", "onset", "theta_m", "theta_to_onset"),
+              clusters=())
 
 NAME = "fig7_rigidity"
 RIGID_COLUMNS = ("rigid_fraction", "floppy_per_grain", "rigid_spanning")

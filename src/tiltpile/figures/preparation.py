@@ -48,7 +48,11 @@ from tiltpile.analysis.observables import run_files
 from tiltpile.config import history_label, rate_suffix
 
 from . import fig2, style
-from .data import per_run_quiet
+from .data import Reads, per_run_quiet
+
+# the table columns the study reads (from records, only these are checked): Fig. 2's, whose
+# computation it runs on every ensemble, hold all it reads besides
+READS = Reads("The preparation study", fig2.READS.frames, fig2.READS.clusters)
 
 NAME = "preparation"
 
@@ -153,14 +157,14 @@ def check_inputs(data_dirs, labels=None) -> list[str]:
 
 def load(data_dirs, labels=None, **analysis_params) -> tuple[list, list[str], list[list[float]]]:
     """The ensembles of ``data_dirs`` (:func:`tiltpile.figures.data.load`, with
-    ``analysis_params``), their labels and preparation histories, after :func:`check_inputs`.
+    ``analysis_params``, holding the columns of ``READS``), their labels and preparation histories, after :func:`check_inputs`.
     Labels not given are derived from the run files' preparation (:func:`history_label`, with
     the history's rate when it has its own, :func:`rate_suffix`; the directory name is appended
     where two would be equal)."""
     from . import data
     labels = check_inputs(data_dirs, labels)
     hist = [preparation_history(d) for d in data_dirs]
-    ens = [data.load(d, None, **analysis_params) for d in data_dirs]
+    ens = [data.load(d, None, READS, **analysis_params) for d in data_dirs]
     if not labels:
         derived = [history_label(h) + (rate_suffix(e.config) if h else "")
                    for h, e in zip(hist, ens)]

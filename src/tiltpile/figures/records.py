@@ -8,8 +8,8 @@ A record holds, for one finished run:
   read: all but ``DROPPED_CLUSTER_COLUMNS`` (the clusters' position, gyration radii and
   long-axis angle in the box frame: read by no figure, study or report, and 60% of the bytes);
 * the run's configuration and hash, seed, cost, how it ended, its deposition, preparation and
-  health records, the writer's tiltpile version and the table code
-  (:func:`tiltpile.analysis.tables.table_code`);
+  health records, the writer's tiltpile version and the code digest of every column it holds
+  (``column_code``: :func:`tiltpile.analysis.tables.column_code`);
 * ``source``: the run file's name, size, attribute digest (``attrs_sha256``) and frames digest
   (``store.Run.frames_digest``), so that the record can be traced to its run file;
 * the frames of the pile pictures (Figs. 1b and 3): for every run, the frames the pictures
@@ -25,9 +25,12 @@ four picture frames 0.17 MB), 0.15 MB for a smoke run, 1.7-1.8 MB for a 4000-gra
 held to float32 precision are stored as float32 (:mod:`tiltpile.record`). With every cluster
 column a record would be ~2x larger. What a record keeps and drops: docs/run-file.md.
 
-A record is up to date when it was written by this format version, table code and
-``WRITER`` choice, from the same run file (same name, size and ``attrs_sha256``; for files
-without it, the same mtime); ``write_records`` rewrites only the others.
+A record is up to date when it was written by this format version and ``WRITER`` choice, holds
+every column this tiltpile computes (but the dropped ones) with this tiltpile's code for each
+(records of the whole-table digest through :mod:`tiltpile.analysis.legacy_codes`), and comes from
+the same run file (same name, size and ``attrs_sha256``; for files without it, the same mtime);
+``write_records`` rewrites only the others: where the run files exist, a column added or
+recomputed reaches the records with ``make records``.
 """
 
 from __future__ import annotations
@@ -40,7 +43,8 @@ import pandas as pd
 
 from tiltpile.analysis.observables import (compute_observables, load_run_observables, run_files,
                                            table_params)
-from tiltpile.analysis.tables import table_code
+from tiltpile.analysis.legacy_codes import recorded_column_code
+from tiltpile.analysis.tables import column_code
 from tiltpile.record import (FORMAT_VERSION, RecordError, read_meta, record_files, record_name,
                              write_record)
 
@@ -75,9 +79,17 @@ def _source(run, path: Path) -> dict:
     return out
 
 
+def _kept_code() -> dict:
+    """The column codes a record written now holds: every column but the dropped ones."""
+    codes = column_code()
+    return {"frames": codes["frames"],
+            "clusters": {c: d for c, d in codes["clusters"].items()
+                         if c not in DROPPED_CLUSTER_COLUMNS}}
+
+
 def _wanted_meta() -> dict:
     """What an up-to-date record's meta says besides its source."""
-    return {"format_version": FORMAT_VERSION, "analysis_code": table_code(),
+    return {"format_version": FORMAT_VERSION, "column_code": _kept_code(),
             "analysis_params": table_params(), "writer": WRITER}
 
 
@@ -91,6 +103,11 @@ def _fresh(record: Path, run_path: Path) -> bool:
     except RecordError:
         return False
     want = json.loads(json.dumps(_wanted_meta()))
+    held = recorded_column_code(meta) or {}
+    present = {t: [c for c, _ in cols] for t, cols in (meta.get("columns") or {}).items()}
+    if {t: {c: held.get(t, {}).get(c) for c in present.get(t, [])} for t in ("frames", "clusters")} \
+            != want.pop("column_code"):
+        return False
     if any(meta.get(k) != v for k, v in want.items()):
         return False
     try:

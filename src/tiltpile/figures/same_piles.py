@@ -106,17 +106,24 @@ def _notebook_cells(stem: str, notebooks_dir) -> tuple[str, list[str]]:
 def _given_ensemble(ens):
     """``figures.data.load`` returns ``ens`` inside the block, described as the notebook's load
     would describe it (``meta["analysis"]``); the notebook's analysis parameters must be the ones
-    ``ens`` was loaded with (else ValueError: its tables would be other ones)."""
+    ``ens`` was loaded with (else ValueError: its tables would be other ones). The columns the
+    notebook declares it reads (``reads``) must be in ``ens``'s tables (KeyError otherwise)."""
     real = _data.load
     held = _data.analysis_params(ens)
 
-    def load(data_dir, preset=None, **params):
+    def load(data_dir, preset=None, reads=None, **params):
         want = dict(held, **{k: v for k, v in params.items()})
         if json.dumps(want, sort_keys=True, default=str) != json.dumps(held, sort_keys=True, default=str):
             diff = sorted(k for k in params if json.dumps(params[k], default=str)
                           != json.dumps(held.get(k), default=str))
             raise ValueError(f"the notebook asks for analysis parameters {diff} other than the "
                              "ensemble's tables were computed with")
+        if reads is not None:
+            for table, cols in (("frames", reads.frames), ("clusters", reads.clusters)):
+                missing = sorted(set(cols) - set(getattr(ens, table).columns))
+                if missing:
+                    raise KeyError(f"{reads.reader} reads {table} columns {missing}, which the "
+                                   "ensemble's tables lack")
         # the description the notebook's own load would give (figures.data.load)
         return replace(ens, meta=dict(ens.meta, analysis=_data.recorded_params(params)))
 
