@@ -51,12 +51,12 @@ from tiltpile.store.errors import (MixedConfigError, RunBusyError, RunExistsErro
                                    RunWriteError)
 from tiltpile.store.files import (_describe_os_error, _fsync, acquire_lock, checkpoint_path,
                                   is_write_failure, lock_path, part_path, release_lock,
-                                  remove_stale_checkpoint, write_error, writer_lock)
+                                  write_error, writer_lock)
 from tiltpile.store.layout import (ATTRS, ATTRS_DIGEST, CONTACT_SETS, FILTERS, FRAME_ARRAYS,
                                    FRAME_SCALARS, INTEGRITY, LAYOUT, OPTIONAL, RESERVE_BYTES)
 from tiltpile.store.reader import (Run, _layout_problems, common_config, has_integrity_record,
                                    open_run, verify)
-from tiltpile.store.writer import _BROKEN, RunWriter, _create
+from tiltpile.store.writer import _BROKEN, RunWriter, _create, remove_stale_checkpoint
 
 __all__ = ["ATTRS", "ATTRS_DIGEST", "CONTACT_SETS", "FILTERS", "FRAME_ARRAYS", "FRAME_SCALARS",
            "INTEGRITY", "LAYOUT", "OPTIONAL", "RESERVE_BYTES", "MixedConfigError", "Run",
