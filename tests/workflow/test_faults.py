@@ -648,3 +648,22 @@ def test_part_held_open_by_a_writer_without_our_lock_is_not_truncated(tmp_path, 
     finally:
         holder.kill()
         holder.wait()
+
+
+def test_a_second_ensemble_on_one_directory_is_refused(tmp_path, tiny):
+    """Two `tiltpile ensemble` on one DIR at once: the second is refused (DIR/.ensemble.lock, held
+    here by this test as a first invocation would) before it writes anything."""
+    import fcntl
+
+    from tiltpile.ensemble import LOCK, run_ensemble
+
+    d = tmp_path / "ens"
+    d.mkdir()
+    fd = os.open(d / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with pytest.raises(config.ConfigError, match=f"another tiltpile ensemble is running in {d}"):
+            run_ensemble(tiny, [3], d, progress=False)
+    finally:
+        os.close(fd)
+    assert sorted(p.name for p in d.iterdir()) == [LOCK]
