@@ -151,3 +151,32 @@ def test_meta_is_plain_json(tmp_path):
         doc = json.loads(str(z["meta"][()]))
     assert doc["format"] == record.FORMAT and doc["deposition"] == {"height": 2.5}
     assert [c for c, _ in doc["columns"]["frames"]] == list(_tables()[0].columns)
+
+
+class _Killed(BaseException):
+    """Stands for the process dying at a chosen point (not an Exception: nothing may catch it)."""
+
+
+def test_a_record_killed_mid_write_leaves_the_old_one_whole(tmp_path, monkeypatch):
+    """Killed while writing a record over an older one: the older record stays, byte for byte,
+    and no temporary either (a SIGKILL, which runs no cleanup, leaves its dot-named temporary,
+    which ``record_files`` never lists)."""
+    path = _write(tmp_path / "run_0007.npz")
+    before = path.read_bytes()
+    real = zipfile.ZipFile.writestr
+    calls = []
+
+    def dying(self, *a, **kw):
+        calls.append(1)
+        if len(calls) == 3:
+            raise _Killed
+        return real(self, *a, **kw)
+
+    monkeypatch.setattr(zipfile.ZipFile, "writestr", dying)
+    with pytest.raises(_Killed):
+        _write(path, n_frames=5)
+    monkeypatch.undo()
+    assert path.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["run_0007.npz"]
+    (tmp_path / ".run_0008.npz.123.tmp").write_bytes(b"PK half")
+    assert record.record_files(tmp_path) == [path]

@@ -1,13 +1,14 @@
 """One run from configuration to run file: the glue between ``sim.protocol`` and ``store``.
 
-``simulate(config, seed, out)`` writes ``out`` (via ``out.part``), resuming an interrupted
-``.part`` of the same configuration from its last checkpoint, and returns a summary dict. Both the
-``simulate`` command and the ensemble call it.
+``simulate(config, seed, out)`` writes ``out`` (via the frame log ``out.part``, from which the
+writer builds ``out`` at the end), resuming an interrupted ``.part`` of the same configuration
+from its last checkpoint, and returns a summary dict. Both the ``simulate`` command and the
+ensemble call it.
 
 One writer. The run file's writer lock (``store.writer_lock``, ``NAME.lock``) is held from before
 anything is read or written until the end: a second process writing the same file is refused
 with ``store.RunBusyError``, having changed nothing. An existing ``out`` is replaced only when the
-new run is complete (the rename of ``out.part``); ``overwrite=False`` refuses to replace it
+new run is complete (the rename of the file built from ``out.part``); ``overwrite=False`` refuses to replace it
 (``store.RunExistsError``). A ``.part`` that cannot be resumed (another configuration, no
 checkpoint, damaged) is discarded with a ``RuntimeWarning`` saying why; the returned summary's
 ``discarded`` keeps the reason (None when nothing was discarded). A failed write (a full

@@ -35,7 +35,7 @@ from tiltpile.analysis.contacts import lost_contacts
 from tiltpile.runner import simulate
 from tiltpile.sim import protocol
 from tiltpile.sim.protocol import SimulationError
-from tiltpile.store import open_run, part_path
+from tiltpile.store import framelog, open_run, part_path
 
 SMALL = ["scene.n=60", "scene.box_length=10.0", "protocol.theta_max_deg=10.0"]
 H = config.HealthConfig()
@@ -292,8 +292,7 @@ def test_iteration_cap_far_too_low_stops(tmp_path, small_config, pile_state):
     for words in ("health.cap_hit_stop_fraction", "500 of the 500 steps", "100.0%",
                   "Raise solver.max_iter", ".part"):
         assert words in msg
-    with h5py.File(part_path(out)) as f:
-        caps = f["frames/cap_hits"][()]
+    caps = framelog.read_columns(part_path(out))[0]["cap_hits"]
     fe, rest = small_config.protocol.frame_every, small_config.protocol.rest_steps
     assert caps[0] == rest and np.all(caps[1:] == fe)
     s = _summary_of_columns(part_path(out), small_config)
@@ -302,10 +301,8 @@ def test_iteration_cap_far_too_low_stops(tmp_path, small_config, pile_state):
 
 
 def _summary_of_columns(path, config_):
-    with h5py.File(path) as f:
-        cols = {c: f["frames"][c][()] for c in health.COLUMNS}
-        n = int((~f["particles/fixed"][()]).sum())
-    return health.summarize(cols, {}, config_, n)
+    columns, fixed = framelog.read_columns(path)
+    return health.summarize({c: columns[c] for c in health.COLUMNS}, {}, config_, int((~fixed).sum()))
 
 
 # -- energy from nothing: overlaps pushed apart ---------------------------------------------------

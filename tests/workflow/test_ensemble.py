@@ -168,17 +168,13 @@ def test_external_scheduler_records_a_failure_and_retries_it(dask_cluster, tmp_p
 
 
 def _checkpointed_part(out: Path, min_frames: int) -> bool:
-    """True when some .part file has just written a checkpoint past ``min_frames`` frames.
-
-    "Just": no frame appended since, so the file on disk is the one flushed with the checkpoint
-    (read without locking while the writer runs; a file caught mid-write is looked at again).
-    """
+    """True when some .part file has a checkpoint past ``min_frames`` frames (read without locking
+    while the writer runs: the checkpoint is replaced atomically). The kill then lands wherever
+    that run is: appending a frame, checkpointing, or building its run file."""
     for part in out.glob("run_*.h5.part"):
         try:
             with h5py.File(checkpoint_path(part.with_suffix("")), "r", locking=False) as g:
-                k = int(g.attrs["n_frames"])
-            with h5py.File(part, "r", locking=False) as f:
-                if k >= min_frames and f["frames/step"].shape[0] == k:
+                if int(g.attrs["n_frames"]) >= min_frames:
                     return True
         except Exception:
             pass
@@ -228,16 +224,13 @@ def test_sigkill_then_rerun_is_bit_identical(tmp_path):
     m = run_ensemble(cfg, [0, 1], out, workers=2, progress=False)
     assert [m["runs"][s]["status"] for s in ("0", "1")] == ["done", "done"]
     assert not list(out.glob("*.part")) and not list(out.glob("*.ckpt"))
-    # A run resumes from its checkpoint, unless the kill caught HDF5 writing its .part: then the
-    # file cannot be read back, and the run starts afresh and says why (docs/run-file.md). The run
-    # the kill was timed on had just flushed and resumes; the other, killed at a random point of
-    # its own, was caught so in 1 of ~120 runs of this test on a loaded 2-core machine.
-    resumed = [seed for seed, k in resumable.items() if m["runs"][seed]["resumed_from_frame"] == k]
-    assert resumed, f"no run resumed from its checkpoint: {[m['runs'][s] for s in resumable]}"
-    for seed in set(resumable) - set(resumed):
+    # Every run with a checkpoint resumes from it, wherever the kill caught it: the run the kill
+    # was timed on had just checkpointed, the other one was at a random point of its own (before
+    # the frame log, a kill inside an HDF5 write of the .part left it unreadable: 1 of ~120 runs
+    # of this test on a loaded 2-core machine started afresh).
+    for seed, k in resumable.items():
         r = m["runs"][seed]
-        assert r["resumed_from_frame"] is None, (seed, r)
-        assert r["discarded"] in ("it cannot be read", "its frames cannot be read back"), (seed, r)
+        assert r["resumed_from_frame"] == k and r["discarded"] is None, (seed, r)
 
     ref = tmp_path / "reference"
     for seed in (0, 1):

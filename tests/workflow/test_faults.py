@@ -69,8 +69,8 @@ def _one_error_line(lines, *words) -> None:
         assert str(w) in lines[0], (w, lines)
 
 
-def _dying_append(at_frame: int):
-    original = store.RunWriter.append
+def _dying_append(at_frame: int, owner=store.RunWriter):
+    original = owner.append
 
     def append(self, frame):
         if self.n_frames == at_frame:
@@ -461,7 +461,8 @@ def test_seed_range_is_checked_before_anything_is_written(tmp_path, tiny, capsys
 # -- 10. smaller -------------------------------------------------------------------------------------
 
 def test_stale_checkpoint_of_a_finished_run_is_removed(tmp_path, tiny, ref, monkeypatch, capsys):
-    """A kill between the final rename and the checkpoint's removal left NAME.ckpt forever."""
+    """A kill between the final rename and the removal of the frame log and the checkpoint left
+    them forever (NAME.ckpt alone, before the log): the log's DONE record names the finished file."""
     out = tmp_path / "run.h5"
     real = os.replace
 
@@ -474,11 +475,28 @@ def test_stale_checkpoint_of_a_finished_run_is_removed(tmp_path, tiny, ref, monk
     with pytest.raises(_Killed):
         simulate(tiny, 3, out, progress=False)
     monkeypatch.undo()
-    assert out.exists() and checkpoint_path(out).exists() and not part_path(out).exists()
+    assert out.exists() and checkpoint_path(out).exists() and part_path(out).exists()
     assert store.verify(out) == []
     rc, lines = _cli(capsys, "simulate", *SETS, "--seed", "3", "--out", out, "--quiet")
-    assert rc == 2  # exists: refused, but the stale checkpoint is gone
+    assert rc == 2  # exists: refused, but the stale log and checkpoint are gone
     assert sorted(p.name for p in tmp_path.iterdir()) == ["run.h5"]
+    assert_same_run(out, ref)
+    # the checkpoint alone (killed after the log's removal) goes too
+    checkpoint_path(out).write_bytes(b"stale")
+    assert store.remove_stale_checkpoint(out) and sorted(p.name for p in tmp_path.iterdir()) == ["run.h5"]
+
+
+def test_a_killed_force_rerun_beside_a_finished_run_is_resumed_not_removed(tmp_path, tiny, ref, monkeypatch):
+    """NAME + NAME.part + NAME.ckpt is also what a --force rerun killed midway leaves: its log has
+    no DONE record naming NAME, so it stays and resumes."""
+    out = tmp_path / "run.h5"
+    shutil.copy(ref, out)
+    monkeypatch.setattr(store.RunWriter, "append", _dying_append(8))
+    with pytest.raises(_Killed):
+        simulate(tiny, 3, out, progress=False)
+    monkeypatch.undo()
+    assert not store.remove_stale_checkpoint(out) and part_path(out).exists()
+    assert simulate(tiny, 3, out, progress=False)["resumed_from_frame"] > 0
 
 
 def test_observables_workers_must_be_positive(tmp_path, ref, capsys):
@@ -608,8 +626,12 @@ def test_disk_filled_by_someone_else_mid_write_is_still_one_line(tmp_path, ref, 
 def test_part_held_open_by_a_writer_without_our_lock_is_not_truncated(tmp_path, tiny, monkeypatch):
     """A writer of an older tiltpile takes no NAME.lock, only HDF5's own file lock: its .part is
     still not truncated."""
+    import legacy_writer
+    from tiltpile import runner
+
     out = tmp_path / "run.h5"
-    monkeypatch.setattr(store.RunWriter, "append", _dying_append(9))
+    monkeypatch.setattr(runner, "RunWriter", legacy_writer.RunWriter)  # an HDF5 .part, as before the log
+    monkeypatch.setattr(legacy_writer.RunWriter, "append", _dying_append(9, legacy_writer.RunWriter))
     with pytest.raises(_Killed):
         simulate(tiny, 3, out, progress=False)
     monkeypatch.undo()
@@ -626,3 +648,22 @@ def test_part_held_open_by_a_writer_without_our_lock_is_not_truncated(tmp_path, 
     finally:
         holder.kill()
         holder.wait()
+
+
+def test_a_second_ensemble_on_one_directory_is_refused(tmp_path, tiny):
+    """Two `tiltpile ensemble` on one DIR at once: the second is refused (DIR/.ensemble.lock, held
+    here by this test as a first invocation would) before it writes anything."""
+    import fcntl
+
+    from tiltpile.ensemble import LOCK, run_ensemble
+
+    d = tmp_path / "ens"
+    d.mkdir()
+    fd = os.open(d / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        with pytest.raises(config.ConfigError, match=f"another tiltpile ensemble is running in {d}"):
+            run_ensemble(tiny, [3], d, progress=False)
+    finally:
+        os.close(fd)
+    assert sorted(p.name for p in d.iterdir()) == [LOCK]

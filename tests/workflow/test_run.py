@@ -15,7 +15,7 @@ from tiltpile import config, store
 from tiltpile.analysis.observables import lost_between
 from tiltpile.runner import simulate
 from tiltpile.sim import protocol
-from tiltpile.store import checkpoint_path, open_run, part_path
+from tiltpile.store import checkpoint_path, framelog, open_run, part_path
 
 REQUIRED = ["particles/radius", "particles/fixed", "frames/step", "frames/time", "frames/theta_deg",
             "frames/position", "frames/rotation", "frames/velocity", "frames/omega",
@@ -243,8 +243,13 @@ def test_part_file_that_changed_after_its_checkpoint_is_not_resumed(
     resumed = store.RunWriter.resume(out, cfg.hash())   # intact: resumable
     assert resumed is not None and resumed[0].n_frames > 0
     resumed[0].close()
-    with h5py.File(part_path(out), "r+") as f:
-        f["frames/position"][1, 0, 0] += 1e-12
+    frame = [at - len(payload) for kind, payload, at in framelog.read_records(part_path(out))
+             if kind == b"FRAM"][1]
+    with open(part_path(out), "r+b") as fh:  # the last byte of grain 0's x in frame 1
+        fh.seek(frame + 8 * len(store.FRAME_SCALARS) + 7)
+        byte = fh.read(1)
+        fh.seek(-1, 1)
+        fh.write(bytes([byte[0] ^ 1]))
     assert store.RunWriter.resume(out, cfg.hash()) is None
     with pytest.warns(RuntimeWarning, match="discarded .*run.h5.part: its frames differ"):
         summary = simulate(cfg, 2, out, progress=False)

@@ -1,8 +1,8 @@
 """Cost of the run file's integrity record and of compression.
 
 Rewrites the frames of an existing run file through ``store.RunWriter`` with different HDF5
-filters and reports, per variant, the file size, the writer's time (all appends, checkpoints
-left out, and the final close), the time of ``store.verify`` (every chunk of every dataset)
+filters and reports, per variant, the file size, the writer's time (all appends to the frame
+log, checkpoints left out, and the final build of the run file from it), the time of ``store.verify`` (every chunk of every dataset)
 and the time of a frame-by-frame read as the analysis does it (``open_run``, then position,
 velocity, omega and contacts of every frame)::
 
@@ -60,24 +60,27 @@ def _write(head: dict, frames: list, out: Path, variant: str) -> float:
     filters = VARIANTS[variant]
     saved = store.writer.FILTERS  # what the writer creates its datasets with
     store.writer.FILTERS = filters
+    digests = {} if variant == "sha256" else None
+
+    class Writer(store.RunWriter):
+        def _before_close(self, f):
+            if not filters.get("fletcher32"):
+                del f.attrs["integrity"]  # no checksums: read as a file written before them
+            for name, h in (digests or {}).items():
+                group = "contacts" if name in store.CONTACT_SETS else "frames"
+                f[f"{group}/{name}"].attrs["sha256"] = h.hexdigest()
+
     try:
         t0 = time.perf_counter()
-        w = store.RunWriter(out, config_json=head["config"], config_hash=head["config_hash"],
-                            seed=head["seed"], radius=head["radius"], fixed=head["fixed"],
-                            box_length=head["box_length"], jit={})
-        if not filters.get("fletcher32"):
-            del w.f.attrs["integrity"]  # no checksums: read as a file written before them
-        digests = {} if variant == "sha256" else None
+        w = Writer(out, config_json=head["config"], config_hash=head["config_hash"],
+                   seed=head["seed"], radius=head["radius"], fixed=head["fixed"],
+                   box_length=head["box_length"], jit={})
         for fr in frames:
             w.append(fr)
             if digests is not None:
                 for name in (*store.FRAME_SCALARS, *store.FRAME_ARRAYS, *store.CONTACT_SETS):
                     digests.setdefault(name, hashlib.sha256()).update(
                         np.ascontiguousarray(getattr(fr, name)).tobytes())
-        if digests is not None:
-            for name, h in digests.items():
-                group = "contacts" if name in store.CONTACT_SETS else "frames"
-                w.f[f"{group}/{name}"].attrs["sha256"] = h.hexdigest()
         w.finish()
         return time.perf_counter() - t0
     finally:

@@ -122,16 +122,6 @@ def release_lock(path: str | Path) -> None:
         os.close(entry[0])
 
 
-def remove_stale_checkpoint(path: str | Path) -> bool:
-    """Remove ``NAME.ckpt`` of a finished run (``NAME`` exists, no ``NAME.part``): what a process
-    killed between the final rename and the checkpoint's removal leaves. True if one was removed."""
-    path = Path(path)
-    ckpt = checkpoint_path(path)
-    if path.exists() and ckpt.exists() and not part_path(path).exists():
-        ckpt.unlink(missing_ok=True)
-        return True
-    return False
-
 def part_path(path: str | Path) -> Path:
     path = Path(path)
     return path.with_name(path.name + ".part")
