@@ -18,7 +18,7 @@ import sys
 
 from tiltpile import config as cfgmod
 
-COMMANDS = ("simulate", "ensemble", "observables", "verify", "report", "bench", "info", "export", "movie",
+COMMANDS = ("simulate", "dem", "ensemble", "observables", "verify", "report", "bench", "info", "export", "movie",
             "repose", "zcount", "record")
 
 
