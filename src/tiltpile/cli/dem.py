@@ -2,7 +2,8 @@
 
 The pile is a preset's (``--preset P --seed S``: Contact Dynamics deposits it, as ``simulate``
 does) or a fresh Contact Dynamics run file's frame 0 (``--from RUN.h5``: its configuration and
-seed unless ``--preset`` is given, in which case the two must deposit the same pile). The
+seed unless ``--preset`` is given; either way the configuration must deposit the same pile,
+``dem.protocol.pile_key``). The
 configuration gets a ``[dem]`` section (defaults: ``config.DemConfig``; ``--set dem.kn=...``),
 which marks the run file's engine; the run file has the layout of ``simulate``'s and resumes
 the same way (``runner.simulate``).
@@ -47,7 +48,7 @@ def _with_dem(cfg: cfgmod.Config) -> cfgmod.Config:
 
 def _from_run(args):
     """(configuration, seed, pile) of ``--from`` (checked; ConfigError naming the problem)."""
-    from tiltpile.dem.protocol import Pile
+    from tiltpile.dem.protocol import Pile, pile_key
     from tiltpile.store import RunFileError, open_run
 
     src = args.source
@@ -76,9 +77,9 @@ def _from_run(args):
         cfg = cfgmod.load(args.preset, args.config, args.overrides)
     else:
         cfg = cfgmod.load_over(run_cfg.to_dict(), args.config, args.overrides)
-    if cfgmod.without_history(cfg).hash() != run_cfg.hash():
+    if pile_key(cfg) != pile_key(run_cfg):
         raise ConfigError(f"--from {src}: the configuration deposits another pile than the run file's "
-                          "(they differ outside the history and [dem]); drop --preset/--config/--set "
+                          "(its scene, solver or deposition rest rule differ); drop --preset/--config/--set "
                           "or give --preset and --seed")
     return _with_dem(cfg), pile_seed, Pile.of_frame(radius, fixed, frame, deposition)
 

@@ -43,6 +43,7 @@ one wrote it, so the resumed run gives the same frames, bit for bit.
 from __future__ import annotations
 
 import dataclasses
+import json
 import math
 from dataclasses import dataclass, field
 
@@ -115,6 +116,16 @@ def _deposit(config, seed: int):
     finally:
         gen.close()
     raise SimulationError("the Contact Dynamics protocol ended before its frame 0")  # pragma: no cover
+
+
+def pile_key(config) -> str:
+    """What the starting pile depends on (the scene, the solver, the deposition's rest rule),
+    as JSON: two configurations with the same key deposit the same pile for a seed."""
+    proto = config.protocol
+    return json.dumps({"scene": dataclasses.asdict(config.scene),
+                       "solver": dataclasses.asdict(config.solver),
+                       "rest": [proto.rest_ke, proto.rest_steps, proto.max_deposition_steps]},
+                      sort_keys=True)
 
 
 def substeps(config) -> tuple[int, float]:
