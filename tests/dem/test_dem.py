@@ -45,6 +45,21 @@ def test_disks_at_rest_carry_their_weight():
     assert overlap == pytest.approx(math.pi * 0.25 / DEM.kn, rel=1e-6)  # delta = m g / k_n
 
 
+def test_a_dropped_disk_rebounds_with_the_restitution():
+    """Hitting the floor at 1 sqrt(g d), the disk leaves it (overlap back to 0) at e = 0.1 of that
+    speed, to 2% (gravity acts over the contact, ~0.008 sqrt(d/g))."""
+    p = _pile([0.5], [False], [[5.0, 0.5]], velocity=[[0.0, -1.0]])
+    try:
+        for _ in range(300):
+            p.advance(1, 0.0, 0.0)
+            if p.step > 5 and p.position[0, 1] > 0.5:
+                break
+        v = p.velocity[0, 1]
+    finally:
+        p.close()
+    assert v == pytest.approx(DEM.restitution, rel=0.02)
+
+
 @pytest.mark.parametrize("theta_deg", [30.0, 60.0])
 def test_disk_on_incline_rolls_below_atan_3mu_and_slides_above(theta_deg):
     """tan(theta) < 3 mu: it rolls, a = (2/3) g sin(theta), f_t = m g sin(theta) / 3, sticking;
@@ -106,7 +121,7 @@ def test_tiny_pile_end_to_end(tiny_run):
             pair, force, status = r.contacts(k)
             assert np.all(pair[:, 0] < np.where(pair[:, 1] >= 0, pair[:, 1], np.inf))
             act = force[:, 0] > 0
-            assert np.array_equal(status > 0, act)
+            assert np.array_equal(status > 0, act)  # f_n <= 0 (a pulling dashpot): open
             ratio = np.abs(force[act, 1]) / (MU * force[act, 0])
             assert np.array_equal(status[act] == 2, ratio >= 1 - DEM.slide_eps)
             assert ratio.max() <= 1 + 1e-12

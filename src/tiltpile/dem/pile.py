@@ -9,9 +9,11 @@ each other or the walls.
 
 The model (docs/dem.md), for grain-grain, grain-fixed grain and grain-wall contacts alike:
 
-* normal force f_n = max(0, k_n delta + eta_n v_n) (``pair_style granular hooke``, damping
+* normal force f_n = k_n delta + eta_n v_n (``pair_style granular hooke``, damping
   ``coeff_restitution``: eta_n = sqrt(4 m_eff k_n / (1 + (pi / ln e)^2)), the restitution e of
-  a binary collision; ``limit_damping``: never attractive);
+  a binary collision; v_n the approach speed). The dashpot may pull (f_n < 0) at the end of a
+  collision; LAMMPS' ``limit_damping``, which forbids that, would raise the restitution of
+  e = 0.1 to about 0.25, so it is not used;
 * tangential spring with history, k_t = ``kt_ratio`` k_n, damped by ``tangential_damping``
   eta_n, the total tangential force truncated at mu f_n (the spring rescaled to the limit);
   mu = ``scene.mu`` between grains (fixed ones included), ``scene.mu_wall`` at the walls;
@@ -25,7 +27,8 @@ turns with the grain; ``rotation`` unwraps its angle between calls of ``advance`
 
 Contacts (``contacts``) are those with an overlap: pair (i < j, walls < 0), force [f_n, f_t]
 [m g] with n from j to i and t = (-n_y, n_x) (the force on i is f_n n + f_t t), status 0 open
-(f_n = 0), 1 sticking, 2 sliding (|f_t| >= mu f_n (1 - slide_eps)). They are the forces of the
+(f_n <= 0: an overlap carrying no force, or a dashpot pulling, stored as it is), 1 sticking,
+2 sliding (|f_t| >= mu f_n (1 - slide_eps)). They are the forces of the
 last step: LAMMPS evaluates them at the half-step velocities, so the grain-grain forces are
 re-evaluated (``compute pair/local``, contact history not updated) with the velocities set back
 by half a step, v - dt f / (2 m), and restored afterwards; the wall forces are those the wall
@@ -52,7 +55,7 @@ def _model(dem, mu: float) -> str:
     """The ``hooke ... tangential linear_history ...`` contact model of ``dem`` with friction mu."""
     kt = dem.kt_ratio * dem.kn
     return (f"hooke {dem.kn!r} {dem.restitution!r} tangential linear_history {kt!r} "
-            f"{dem.tangential_damping!r} {mu!r} damping coeff_restitution limit_damping")
+            f"{dem.tangential_damping!r} {mu!r} damping coeff_restitution")
 
 
 class DemPile:
