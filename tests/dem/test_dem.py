@@ -195,3 +195,16 @@ def test_a_run_file_after_a_history_is_refused(tmp_path, capsys):
     err = capsys.readouterr().err.strip().splitlines()
     assert rc == 2 and len(err) == 1 and "preparation history" in err[0], err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["cd.h5"]
+
+
+def test_the_dem_section_marks_the_engine_and_leaves_cd_configurations_alone():
+    """No preset has a [dem] section, so no CD configuration's JSON or hash changes; a dem key
+    (or an empty [dem] table) selects the DEM, which has its own hash and reads back the same."""
+    for name in config.PRESETS:
+        cfg = config.load(name)
+        assert cfg.dem is None and cfg.engine == "cd" and '"dem"' not in cfg.to_json()
+    dem = config.load("default", overrides=["dem.kn=800000.0"])
+    assert dem.engine == "lammps" and dem.dem.kn == 8e5 and dem.hash() != config.load("default").hash()
+    assert config.from_json(dem.to_json()) == dem
+    assert config.from_dict({**config.preset_dict("smoke"), "dem": {}}).dem == config.DemConfig()
+    assert config.without_history(dem) == config.load("default-fresh")
