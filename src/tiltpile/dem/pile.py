@@ -82,7 +82,6 @@ class DemPile:
         except BaseException:
             self.close()
             raise
-        self._theta = (0.0, 0.0, self.step)  # gravity: theta0 [deg], per step [deg], from step
 
     # -- building -------------------------------------------------------------------------
     def cmd(self, text: str) -> None:
