@@ -188,7 +188,8 @@ class DemConfig:
                             doc="normal restitution of a binary collision (viscous damping)")
     kt_ratio: float = _f(2.0 / 7.0, lo=0.0, lo_open=True, hi=10.0,
                          doc="tangential spring k_t / k_n (history spring truncated at mu f_n)")
-    tangential_damping: float = _f(1.0, lo=0.0, hi=10.0,
+    # 0: undamped tangential springs, the earlier cross-check's model (docs/dem.md, "Measured")
+    tangential_damping: float = _f(0.0, lo=0.0, hi=10.0,
                                    doc="tangential viscous damping as a multiple of the normal one")
     dt: float = _f(8e-5, lo=0.0, lo_open=True, hi=0.1,
                    doc="largest DEM time step [sqrt(d/g)]; the step used divides solver.dt")
