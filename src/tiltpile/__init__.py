@@ -4,7 +4,7 @@
 Layers, from the bottom up (``LAYERS``). A module imports only from its own package and from
 layers below its own, never from beside or above it; ``tests/test_layers.py`` enforces this and
 that no import circle exists. Data flows up the same way: a configuration is simulated
-(``sim``, numba kernels that know no files), written (``store``, the only HDF5 code; ``record``,
+(``sim``, numba kernels that know no files, or ``dem``, the same protocol in LAMMPS), written (``store``, the only HDF5 code; ``record``,
 what the figures keep of a finished run), run one (``runner``) or many at a time
 (``ensemble``), analysed (``analysis``), drawn (``figures``, ``view``), measured (``bench``) and
 driven from the command line (``cli``).
@@ -17,6 +17,7 @@ __version__ = "0.1.0"
 # each entry: the subpackages and modules of one layer (names under tiltpile/)
 LAYERS = (
     ("config", "presets", "sim"),         # validated parameters and presets; the simulator
+    ("dem",),                             # the second engine: soft-sphere DEM (LAMMPS)
     ("paths", "health"),                  # output paths; health limits of a run
     ("store", "record"),                  # the run file (HDF5); the run record (figures' inputs)
     ("runner",),                          # one run: simulate, check health, write

@@ -6,7 +6,10 @@ sections, each a frozen dataclass whose fields carry their type and allowed rang
 ``scene``     the grains and the box (what is simulated),
 ``solver``    the Contact Dynamics integrator (how accurately),
 ``protocol``  deposition and quasi-static tilt (what is done to the pile),
-``health``    the limits at which a run is flagged, warned about, or stopped (``HealthConfig``).
+``health``    the limits at which a run is flagged, warned about, or stopped (``HealthConfig``),
+``dem``       optional: the soft-sphere DEM engine (LAMMPS) instead of Contact Dynamics
+              (``DemConfig``; docs/dem.md). Absent (``Config.dem`` None) in every preset: a
+              configuration without it is a Contact Dynamics run and keeps its hash.
 
 Presets ``smoke``, ``default``, ``default-fresh``, ``paper``, ``paper-fresh`` and ``paper-fast`` live in
 ``tiltpile/presets/*.toml``. The fields' defaults are the ``default-fresh`` preset's values (the
@@ -168,6 +171,32 @@ class HealthConfig:
                                           "CAP_HIT_MIN_STEPS (500) steps on; 1 never stops")
 
 
+@dataclass(frozen=True)
+class DemConfig:
+    """The soft-sphere DEM engine (``tiltpile.dem``, LAMMPS' GRANULAR package; docs/dem.md).
+
+    The pile, box, friction (``scene.mu``, ``scene.mu_wall``), history and ramp are those of the
+    other sections; the ramp runs at the same physical rate, ``protocol.tilt_per_step_deg /
+    solver.dt`` deg per sqrt(d/g), with ``solver.dt / dt`` rounded up to a whole number of DEM
+    steps per Contact Dynamics step. Units m g / d for stiffnesses (m: the mass of a grain of
+    diameter d, density 1), sqrt(d/g) for times.
+    """
+
+    kn: float = _f(2e5, lo=0.0, lo_open=True,
+                   doc="Hookean normal stiffness k_n [m g / d], m = pi d^2 / 4")
+    restitution: float = _f(0.1, lo=0.0, lo_open=True, hi=1.0,
+                            doc="normal restitution of a binary collision (viscous damping)")
+    kt_ratio: float = _f(2.0 / 7.0, lo=0.0, lo_open=True, hi=10.0,
+                         doc="tangential spring k_t / k_n (history spring truncated at mu f_n)")
+    # 0: undamped tangential springs, the earlier cross-check's model (docs/dem.md, "Measured")
+    tangential_damping: float = _f(0.0, lo=0.0, hi=10.0,
+                                   doc="tangential viscous damping as a multiple of the normal one")
+    dt: float = _f(8e-5, lo=0.0, lo_open=True, hi=0.1,
+                   doc="largest DEM time step [sqrt(d/g)]; the step used divides solver.dt")
+    slide_eps: float = _f(1e-9, lo=0.0, hi=0.5,
+                          doc="a contact is stored as sliding when |f_t| >= mu f_n (1 - slide_eps)")
+
+
 # (section, key) -> the default at which the key is left out of the canonical JSON (Config.to_json)
 LATER_KEYS = {("protocol", "pretilt_deg"): (), ("protocol", "pretilt_per_step_deg"): 0.0,
               ("protocol", "end_ke"): 0.0,
@@ -256,7 +285,9 @@ def _expand_history(given: dict) -> dict:
 
 
 SECTIONS = {"scene": SceneConfig, "solver": SolverConfig, "protocol": ProtocolConfig,
-            "health": HealthConfig}
+            "health": HealthConfig, "dem": DemConfig}
+# sections a configuration holds only when given (None otherwise, and absent from its JSON)
+OPTIONAL_SECTIONS = ("dem",)
 
 
 @dataclass(frozen=True)
@@ -265,9 +296,19 @@ class Config:
     solver: SolverConfig = field(default_factory=SolverConfig)
     protocol: ProtocolConfig = field(default_factory=ProtocolConfig)
     health: HealthConfig = field(default_factory=HealthConfig)
+    dem: DemConfig | None = None  # the DEM engine (tiltpile dem); None: Contact Dynamics
+
+    @property
+    def engine(self) -> str:
+        """ "lammps" (soft-sphere DEM, ``dem`` given) or "cd" (Contact Dynamics)."""
+        return "cd" if self.dem is None else "lammps"
 
     def to_dict(self) -> dict[str, dict[str, Any]]:
-        return dataclasses.asdict(self)
+        d = dataclasses.asdict(self)
+        for section in OPTIONAL_SECTIONS:
+            if d[section] is None:
+                del d[section]
+        return d
 
     def to_json(self) -> str:
         """Canonical JSON. Keys added after the first release (``LATER_KEYS``) appear only when set
@@ -351,7 +392,11 @@ def from_dict(data: dict[str, Any], base: Config | None = None) -> Config:
         raise ConfigError("configuration must be a table of sections")
     out = {}
     for section, cls in SECTIONS.items():
-        current = dataclasses.asdict(getattr(base, section))
+        if section in OPTIONAL_SECTIONS and section not in data and getattr(base, section) is None:
+            out[section] = None
+            continue
+        base_section = getattr(base, section)
+        current = dataclasses.asdict(base_section if base_section is not None else cls())
         given = data.get(section, {})
         if not isinstance(given, dict):
             raise ConfigError(f"{section}: expected a table of keys, got {given!r}")
@@ -479,7 +524,13 @@ def preset_dict(name: str) -> dict[str, Any]:
 def load(preset: str, config_file: str | Path | None = None,
          overrides: list[str] | tuple[str, ...] = ()) -> Config:
     """Preset, then config file, then ``key=value`` overrides; validated once at the end."""
-    data = preset_dict(preset)
+    return load_over(preset_dict(preset), config_file, overrides)
+
+
+def load_over(data: dict, config_file: str | Path | None = None,
+              overrides: list[str] | tuple[str, ...] = ()) -> Config:
+    """``load`` starting from the configuration table ``data`` (a preset's, or a run file's
+    ``Run.config``) instead of a preset."""
     if config_file is not None:
         data = _merge_layer(data, read_toml(config_file))
     for text in overrides:
@@ -498,6 +549,14 @@ def _merge_layer(data: dict, layer: dict) -> dict:
         if drop:
             data = dict(data, protocol={k: v for k, v in data["protocol"].items() if k not in drop})
     return _merge(data, layer)
+
+
+def without_history(cfg: Config) -> Config:
+    """``cfg`` as a fresh Contact Dynamics run: no preparation history (``protocol.pretilt_deg``
+    and its rate cleared) and no ``dem`` section. Its deposition and frame 0 are the pile that
+    ``cfg``'s history (in either engine) starts from."""
+    proto = dataclasses.replace(cfg.protocol, pretilt_deg=(), pretilt_per_step_deg=0.0)
+    return dataclasses.replace(cfg, protocol=proto, dem=None)
 
 
 def from_json(text: str) -> Config:

@@ -3,7 +3,10 @@
 ``simulate(config, seed, out)`` writes ``out`` (via the frame log ``out.part``, from which the
 writer builds ``out`` at the end), resuming an interrupted ``.part`` of the same configuration
 from its last checkpoint, and returns a summary dict. Both the ``simulate`` command and the
-ensemble call it.
+ensemble call it (and ``tiltpile dem``). The engine is the configuration's (``Config.engine``):
+Contact Dynamics (``sim.protocol.run``), or with a ``[dem]`` section the soft-sphere DEM
+(``dem.protocol.run``, which needs LAMMPS: ``dem.lmp.DemUnavailable`` is raised before anything
+is written); both yield the same events into the same layout.
 
 One writer. The run file's writer lock (``store.writer_lock``, ``NAME.lock``) is held from before
 anything is read or written until the end: a second process writing the same file is refused
@@ -32,6 +35,8 @@ from pathlib import Path
 
 from tiltpile import config as cfgmod
 from tiltpile import health, store
+from tiltpile.dem import lmp as dem_lmp
+from tiltpile.dem import protocol as dem_protocol
 from tiltpile.sim import protocol
 from tiltpile.sim.jit import flags
 from tiltpile.store import RunWriter
@@ -39,12 +44,17 @@ from tiltpile.store import RunWriter
 
 def simulate(config, seed: int, out: str | Path, *, progress: bool | str = True,
              resume: bool = True, position: int = 0, on_progress=None,
-             overwrite: bool = True) -> dict:
+             overwrite: bool = True, pile=None) -> dict:
     """Simulate one pile into ``out``; ``progress`` True for a terminal bar, "log" for lines;
     ``on_progress`` (optional) is called with every ``protocol.Progress`` event; ``overwrite``
-    False refuses an existing ``out`` (checked under the writer lock)."""
+    False refuses an existing ``out`` (checked under the writer lock). ``pile`` (DEM only, a
+    ``dem.protocol.Pile``): the starting pile, instead of depositing it (unused on resume)."""
     seed = cfgmod.check_seed(seed)
     out = Path(out)
+    if config.dem is not None:
+        dem_lmp.check_available()
+    elif pile is not None:
+        raise ValueError("a starting pile is for the DEM engine only (a configuration with [dem])")
     try:
         out.parent.mkdir(parents=True, exist_ok=True)
     except OSError as e:
@@ -54,14 +64,14 @@ def simulate(config, seed: int, out: str | Path, *, progress: bool | str = True,
             raise store.RunExistsError(f"{out} exists (finished by another process?); nothing was changed")
         store.remove_stale_checkpoint(out)
         try:
-            return _simulate(config, seed, out, progress, resume, position, on_progress)
+            return _simulate(config, seed, out, progress, resume, position, on_progress, pile)
         except (OSError, RuntimeError) as e:
             if isinstance(e, (store.RunFileError, protocol.SimulationError)) or not store.is_write_failure(e):
                 raise
             raise store.write_error(e, store.part_path(out)) from None
 
 
-def _simulate(config, seed, out, progress, resume, position, on_progress) -> dict:
+def _simulate(config, seed, out, progress, resume, position, on_progress, pile=None) -> dict:
     t0 = time.perf_counter()
     why: list[str] = []
     resumed = RunWriter.resume(out, config.hash(), why=why) if resume else None
@@ -71,9 +81,13 @@ def _simulate(config, seed, out, progress, resume, position, on_progress) -> dic
     else:
         part = store.part_path(out)
         discarded = part.exists()
-        sysm = protocol.make_system(config, seed)
+        if pile is not None:
+            radius, fixed = pile.radius, pile.fixed
+        else:
+            sysm = protocol.make_system(config, seed)
+            radius, fixed = sysm.radius, sysm.fixed
         writer = RunWriter(out, config_json=config.to_json(), config_hash=config.hash(), seed=seed,
-                           radius=sysm.radius, fixed=sysm.fixed, box_length=config.scene.box_length,
+                           radius=radius, fixed=fixed, box_length=config.scene.box_length,
                            jit=flags())
         if discarded:
             reason = ("--no-resume (resume=False) was given" if not resume
@@ -84,7 +98,9 @@ def _simulate(config, seed, out, progress, resume, position, on_progress) -> dic
     start_frame = writer.n_frames
     bar = _Bar(config.protocol.theta_max_deg, seed, progress, position)
     try:
-        for ev in protocol.run(config, seed, state):
+        events = (protocol.run(config, seed, state) if config.dem is None
+                  else dem_protocol.run(config, seed, state, pile=pile))
+        for ev in events:
             if isinstance(ev, protocol.Frame):
                 writer.append(ev)
             elif isinstance(ev, protocol.Checkpoint):

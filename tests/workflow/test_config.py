@@ -85,8 +85,8 @@ def test_cli_reference_lists_every_configuration_key():
     from pathlib import Path
 
     text = (Path(__file__).resolve().parents[2] / "docs" / "cli.md").read_text()
-    for section, cls in (("scene", config.SceneConfig), ("solver", config.SolverConfig),
-                         ("protocol", config.ProtocolConfig), ("health", config.HealthConfig)):
+    assert set(config.SECTIONS) == {"scene", "solver", "protocol", "health", "dem"}
+    for section, cls in config.SECTIONS.items():
         listed = re.search(rf"`{section}\.\{{([^}}]*)\}}`", text)
         assert listed, f"docs/cli.md lists no {section} keys"
         names = {n.strip() for n in listed.group(1).split(",")}

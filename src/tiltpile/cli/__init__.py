@@ -18,8 +18,8 @@ import sys
 
 from tiltpile import config as cfgmod
 
-COMMANDS = ("simulate", "ensemble", "observables", "verify", "report", "bench", "info", "export", "movie",
-            "repose", "zcount", "record", "same-piles", "study")
+COMMANDS = ("simulate", "dem", "ensemble", "observables", "verify", "report", "bench", "info", "export",
+            "movie", "repose", "zcount", "record", "same-piles", "study")
 
 
 def build_parser() -> argparse.ArgumentParser:
