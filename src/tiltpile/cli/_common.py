@@ -79,3 +79,13 @@ def ensemble_files(directory, workers, what: str) -> list[Path]:
     if not files:
         raise ConfigError(f"{d}: no {what}")
     return files
+
+
+def add_run_file_args(s) -> None:
+    """The options of a command that writes one run file, resumably (``simulate``, ``dem``):
+    --out, --force, --no-resume, --quiet."""
+    s.add_argument("--out", required=True, help="run file to write (NAME.h5; NAME.h5.part while running)")
+    s.add_argument("--force", action="store_true",
+                   help="replace an existing complete run file (only once the new run is complete)")
+    s.add_argument("--no-resume", action="store_true", help="ignore an interrupted NAME.h5.part")
+    s.add_argument("--quiet", action="store_true", help="no progress bar")

@@ -16,7 +16,7 @@ import json
 from pathlib import Path
 
 from tiltpile import config as cfgmod
-from tiltpile.cli._common import ConfigError, check_output, seed
+from tiltpile.cli._common import ConfigError, add_run_file_args, check_output, seed
 
 INTERRUPTED = "interrupted; an unfinished run file stays as NAME.h5.part and resumes next time"
 
@@ -34,11 +34,7 @@ def add_parser(sub) -> None:
     s.add_argument("--seed", type=seed, help="the pile's seed (required without --from)")
     s.add_argument("--from", dest="source", type=Path, metavar="RUN.h5",
                    help="start from frame 0 of this fresh Contact Dynamics run file instead of depositing")
-    s.add_argument("--out", required=True, help="run file to write (NAME.h5; NAME.h5.part while running)")
-    s.add_argument("--force", action="store_true",
-                   help="replace an existing complete run file (only once the new run is complete)")
-    s.add_argument("--no-resume", action="store_true", help="ignore an interrupted NAME.h5.part")
-    s.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_run_file_args(s)
     s.set_defaults(func=run, interrupted=INTERRUPTED)
 
 

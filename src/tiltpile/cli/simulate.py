@@ -5,7 +5,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
-from tiltpile.cli._common import ConfigError, add_config_args, check_output, load_config, seed
+from tiltpile.cli._common import (ConfigError, add_config_args, add_run_file_args, check_output,
+                                  load_config, seed)
 
 INTERRUPTED = "interrupted; an unfinished run file stays as NAME.h5.part and resumes next time"
 
@@ -15,11 +16,7 @@ def add_parser(sub) -> None:
     add_config_args(s)
     s.add_argument("--seed", type=seed, required=True,
                    help="the pile's seed (deposition and every random draw): same config and seed, same bits")
-    s.add_argument("--out", required=True, help="run file to write (NAME.h5; NAME.h5.part while running)")
-    s.add_argument("--force", action="store_true",
-                   help="replace an existing complete run file (only once the new run is complete)")
-    s.add_argument("--no-resume", action="store_true", help="ignore an interrupted NAME.h5.part")
-    s.add_argument("--quiet", action="store_true", help="no progress bar")
+    add_run_file_args(s)
     s.set_defaults(func=run, interrupted=INTERRUPTED)
 
 
