@@ -145,12 +145,45 @@ def test_the_legacy_table_code_holds_the_committed_records_columns():
         assert meta["analysis_code"] == "11ce282f6e591a47" and "column_code" not in meta
         for table in ("frames", "clusters"):
             assert {c for c, _ in meta["columns"][table]} <= set(entry[table])
-        assert legacy_codes.recorded_column_code(meta) == entry
+        assert legacy_codes.recorded_column_code(meta) == {
+            t: {c: legacy_codes.superseded(v) for c, v in cols.items()} for t, cols in entry.items()}
         for reads in (fig1.READS, fig2.READS, fig3.READS, fig4.READS, fig5.READS, fig6.READS,
                       fig7.READS, preparation.READS):
             record_columns(p, meta, reads)
     assert legacy_codes.recorded_column_code({"analysis_code": "0" * 16}) is None
+    assert legacy_codes.recorded_column_code({"column_code": {"frames": {"z": "x"}}}) == \
+        {"frames": {"z": "x"}}
     assert legacy_codes.recorded_column_code({"column_code": {"frames": {}}}) == {"frames": {}}
+
+
+def test_superseded_codes_reach_this_tiltpiles_codes():
+    """Every superseded code leads, without a cycle, to a code this tiltpile computes (an entry
+    pointing nowhere would carry records over to a code no column has), and a record holding the
+    old codes of 8c18fdd (the committed records' own) is served every column as it is now."""
+    current = {v for cols in tables.column_code().values() for v in cols.values()}
+    for old in legacy_codes.SUPERSEDED:
+        assert legacy_codes.superseded(old) in current
+    entry = legacy_codes.LEGACY["11ce282f6e591a47"]
+    held = legacy_codes.recorded_column_code({"column_code": entry})
+    assert held == tables.column_code()
+
+
+def test_code_change_compares_values_dtype_and_nan():
+    from tiltpile.bench import code_change as cc
+    a = {("0", "0", "frames", "z"): np.array([1.0, np.nan]),
+         ("0", "0", "frames", "n"): np.array([1, 2]),
+         ("0", "0", "frames", "m"): np.array([1, 2])}
+    b = {("0", "0", "frames", "z"): np.array([1.0, np.nan]),
+         ("0", "0", "frames", "n"): np.array([1, 2], dtype=np.int32),
+         ("0", "0", "frames", "m"): np.array([1, 3])}
+    old = {"frames": {"z": "a", "n": "b", "m": "c"}}
+    new = {"frames": {"z": "A", "n": "B", "m": "C"}}
+    res = cc.compare(a, b, old, new)
+    assert res["same"] == {"frames": ["z"]} and sorted(res["different"]["frames"]) == ["m", "n"]
+    assert res["superseded"] == {"a": "A"}
+    # a code shared by two columns is superseded only when both are the same
+    old2 = {"frames": {"z": "s", "m": "s", "n": "b"}}
+    assert "s" not in cc.compare(a, b, old2, {"frames": {"z": "S", "m": "S", "n": "B"}})["superseded"]
 
 
 def test_every_column_is_declared_once_and_documented():

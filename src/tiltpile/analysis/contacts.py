@@ -160,6 +160,46 @@ def contact_gaps(pair: np.ndarray, position: np.ndarray, radius: np.ndarray,
     return gap
 
 
+def gap_contacts(position: np.ndarray, radius: np.ndarray, fixed: np.ndarray, box_length: float,
+                 reach: float) -> tuple[np.ndarray, np.ndarray]:
+    """Every pair of bodies whose surface gap is <= ``reach`` (d), from positions and radii.
+
+    Grain pairs (i < j; scipy.spatial.cKDTree over centres within r_i + r_j + reach, at most
+    2 r_max + reach) with at least one mobile grain, and mobile grains with the floor (gap y - r,
+    j = -1), the left wall (x - r, j = -2) and the right wall (L - x - r, j = -3). Fixed grains
+    have no wall contacts (as in the solver's candidate list). Gaps are negative for overlaps.
+
+    position (N, 2), radius (N,), fixed (N,) bool, box_length L, reach >= 0.
+    Returns pair (C, 2) int64 sorted by (i, j), gap (C,) float.
+    """
+    from scipy.spatial import cKDTree
+
+    pos = np.asarray(position, dtype=float).reshape(-1, 2)
+    r = np.asarray(radius, dtype=float).ravel()
+    fixed = np.asarray(fixed, dtype=bool).ravel()
+    if not reach >= 0.0:
+        raise ValueError(f"gap_contacts: reach must be >= 0 (d), got {reach}")
+    n = r.size
+    if n == 0:
+        return np.empty((0, 2), dtype=np.int64), np.empty(0)
+    pp = cKDTree(pos).query_pairs(2.0 * r.max() + reach, output_type="ndarray").astype(np.int64)
+    pp = np.sort(pp.reshape(-1, 2), axis=1)
+    gg = np.linalg.norm(pos[pp[:, 0]] - pos[pp[:, 1]], axis=1) - r[pp[:, 0]] - r[pp[:, 1]]
+    keep = (gg <= reach) & ~(fixed[pp[:, 0]] & fixed[pp[:, 1]])
+    pairs, gaps = [pp[keep]], [gg[keep]]
+    mob = np.flatnonzero(~fixed)
+    for wall, wgap in ((WALL_FLOOR, pos[mob, 1] - r[mob]),
+                       (WALL_LEFT, pos[mob, 0] - r[mob]),
+                       (WALL_RIGHT, box_length - pos[mob, 0] - r[mob])):
+        w = wgap <= reach
+        pairs.append(np.column_stack([mob[w], np.full(int(w.sum()), wall)]).astype(np.int64))
+        gaps.append(wgap[w])
+    pair = np.concatenate(pairs).reshape(-1, 2)
+    gap = np.concatenate(gaps)
+    order = np.lexsort((pair[:, 1], pair[:, 0]))
+    return pair[order], gap[order]
+
+
 @njit(cache=True)
 def _surface_hits(x, y, r, x0, spacing, n_rays):
     """For vertical rays at x0 + k*spacing, the index of the grain hit first from above."""
@@ -304,6 +344,74 @@ def failing_grains(n: int, pair: np.ndarray, lost: np.ndarray,
     if fixed is not None:
         f &= ~np.asarray(fixed, dtype=bool)
     return f
+
+
+# ----------------------------------------------------------------------------------------------
+# contact rules: which pairs of bodies count as contacts
+
+
+def parse_contact_rule(rule) -> tuple[str, float | None]:
+    """A contact rule, as the analysis parameters ``contact_rule`` and ``lost_rule`` name it.
+
+    * ``"force"``: the contacts carrying a normal force, f_n > 0 (the default);
+    * ``"touching"``: every contact the run file lists: those carrying a force and the touching
+      ones (gap <= 0) that carry none;
+    * ``"gap:<g>"``: every pair of bodies whose surface gap is at most g >= 0 (d), found from the
+      positions (:func:`gap_contacts`: grains, fixed grains, walls and the floor), and every
+      contact carrying a force: the list a contact-dynamics code keeps at an alert distance g.
+
+    Returns (family, g), g None but for "gap"; ValueError (one line) for anything else.
+    """
+    if rule in ("force", "touching"):
+        return rule, None
+    if isinstance(rule, str) and rule.startswith("gap:"):
+        try:
+            g = float(rule[4:])
+        except ValueError:
+            g = float("nan")
+        if np.isfinite(g) and g >= 0.0:
+            return "gap", g
+    raise ValueError(f"a contact rule is 'force', 'touching' or 'gap:<g>' with g >= 0 (d), "
+                     f"got {rule!r}")
+
+
+def with_near_pairs(pair: np.ndarray, force: np.ndarray, status: np.ndarray | None,
+                    position: np.ndarray, radius: np.ndarray, fixed: np.ndarray,
+                    box_length: float, reach: float) -> tuple:
+    """The listed contacts and, after them, every other pair of bodies within a surface gap
+    ``reach`` (d) (:func:`gap_contacts`, in (i, j) order), the added ones with no force and
+    status 0 (open).
+
+    pair (C, 2), force (C, 2), status (C,) or None: the listed contacts (at least one mobile
+    grain each); position (N, 2), radius (N,), fixed (N,) bool, box_length L. Returns pair
+    (C', 2), force (C', 2), status (C',) or None, listed (C',) bool (True for the C listed
+    ones) and gap (C',) the surface gap of every contact (:func:`contact_gaps`).
+    """
+    pair = np.asarray(pair).reshape(-1, 2)
+    force = np.asarray(force, dtype=float).reshape(-1, 2)
+    n = len(fixed)
+    near, _ = gap_contacts(position, radius, fixed, box_length, reach)
+    add = near[~np.isin(pair_keys(near, n), pair_keys(pair, n))]
+    k = len(add)
+    pair = np.concatenate([pair.astype(np.int64), add])
+    force = np.concatenate([force, np.zeros((k, 2))])
+    if status is not None:
+        status = np.asarray(status)
+        status = np.concatenate([status, np.zeros(k, dtype=status.dtype)])
+    listed = np.concatenate([np.ones(len(pair) - k, dtype=bool), np.zeros(k, dtype=bool)])
+    return pair, force, status, listed, contact_gaps(pair, position, radius, box_length)
+
+
+def rule_mask(family: str, g: float | None, force: np.ndarray, listed: np.ndarray,
+              gap: np.ndarray | None) -> np.ndarray:
+    """The contacts a rule (:func:`parse_contact_rule`) counts, among contacts of
+    :func:`with_near_pairs` (or the listed ones alone for "force" and "touching"): "force"
+    f_n > 0, "touching" the listed ones, "gap" f_n > 0 or gap <= g. Returns (C,) bool."""
+    if family == "force":
+        return active_mask(force)
+    if family == "touching":
+        return np.asarray(listed, dtype=bool).copy()
+    return active_mask(force) | (np.asarray(gap) <= g)
 
 
 # ----------------------------------------------------------------------------------------------

@@ -19,6 +19,15 @@ column whose code has not changed since, without being rewritten:
 The table is data, written once: it never follows the code. A column whose code changes gets a
 new digest, which no entry here holds, and its legacy records stop serving it (the loader names
 it).
+
+:data:`SUPERSEDED` carries records over an edit that changes a column's code and not its values:
+{old code: new code}, each entry shown by ``python -m tiltpile.bench.code_change OLD RUNS`` (the
+old commit's tables and the new one's on the same run files, every column, dtype and value, at
+the default parameters and others), written with the commit that made the edit and followed
+transitively (an old code superseded twice reaches the latest). A record's parameters are those
+its tables were computed at, a parameter it predates at its default
+(:func:`tiltpile.analysis.ensemble_data.load_records`), so an entry needs the values to agree
+there only.
 """
 
 from __future__ import annotations
@@ -93,13 +102,52 @@ LEGACY = {
 }
 
 
+#: {old column code: new column code} of edits that kept the values (module docstring), by edit
+SUPERSEDED: dict[str, str] = {
+    # the contact rule, the lost-contact rule and the frame stride as analysis parameters
+    # (contact_rule "force", lost_rule None, frame_stride 1 compute what the code of 8c18fdd
+    # computed): every column, dtype and value the same on two smoke runs and a 1000-grain
+    # default run at the default parameters and at cutoff 0.04; lost_gap 0.001 with link
+    # "mobilized"; eps 0.01 with cluster_region "bulk" and min_contacts 3
+    # (``python -m tiltpile.bench.code_change 8c18fdd ...``)
+    "0ad7a5d1a718a07d": "73fb9872a18c2807",
+    "408f02d62f9afc36": "d5ff07d5f2e727a0",
+    "440b34679cc6dce4": "918461df078b25ec",
+    "583552aaba171ff1": "6fc5232d92908870",
+    "5e3887203b2cf22b": "5092e23071329f99",
+    "6a50ef0a2c8d093f": "f2d43c925168f634",
+    "8a4a6bc40b5b065d": "7e24288b96fd3bb7",
+    "ad9b82c639c6f7be": "f3545a0e2331705d",
+    "cfd58215b2eeb946": "1cd00bc91c84e097",
+    "d14989f26ca1e899": "f06031c175d9bbc1",
+    "dff3888d398c31bb": "870c1882cd2e9931",
+    "e425e2df3556231a": "3d425ab32762a813",
+    "e94c194db3bb463e": "7630804d4594e1fa",
+    "ee825aca3106d2c8": "896c87f40b9aa770",
+    "f16336467ef6e9b8": "dfeb375021bc6b8a",
+    "f36d47004273c630": "85dbc828f0647881",
+    "f4ff9e43f323642a": "52ee6e7b15f1c3e0",
+    "f51fc27e55eb2ec7": "d383a0eb5301dcc3",
+}
+
+
+def superseded(code):
+    """``code`` followed through :data:`SUPERSEDED` to the latest code that computes its values."""
+    seen = set()
+    while code in SUPERSEDED and code not in seen:
+        seen.add(code)
+        code = SUPERSEDED[code]
+    return code
+
+
 def recorded_column_code(meta: dict) -> dict | None:
     """The column codes a record's (or cache's) ``meta`` holds: {"frames": {column: digest},
     "clusters": {...}}, from its ``column_code``, or, for one written with a whole-table digest
-    ``analysis_code``, its entry of :data:`LEGACY`. None when it holds neither or an unknown
-    ``analysis_code``."""
+    ``analysis_code``, its entry of :data:`LEGACY`; each code followed through :data:`SUPERSEDED`.
+    None when it holds neither or an unknown ``analysis_code``."""
     codes = meta.get("column_code")
-    if isinstance(codes, dict):
-        return codes
-    legacy = LEGACY.get(meta.get("analysis_code"))
-    return None if legacy is None else {t: dict(c) for t, c in legacy.items()}
+    if not isinstance(codes, dict):
+        codes = LEGACY.get(meta.get("analysis_code"))
+    if codes is None:
+        return None
+    return {t: {c: superseded(v) for c, v in cols.items()} for t, cols in codes.items()}

@@ -5,7 +5,8 @@ parameter is declared with its meaning) turns one run into two DataFrames: one r
 frame, and one row per critical cluster per frame.
 
 ``compute_observables(DIR)`` does this for every ``DIR/run_*.h5`` whose cache
-``DIR/observables/run_*.npz`` is missing or stale (run file size or mtime changed, other
+``DIR/observables/run_*.npz`` (``DIR/observables/params-<digest>/run_*.npz`` at other analysis
+parameters than the defaults, so that each parameter set keeps its own) is missing or stale (run file size or mtime changed, other
 analysis parameters, or a column added or computed by other code: the per-column digests of
 :func:`tiltpile.analysis.tables.column_code`), in parallel processes, with a progress bar: where
 the run files exist, a new column is computed by the first load after it is declared. ``load_observables(DIR)`` returns the two tables for the
@@ -41,8 +42,19 @@ CACHE_DIRNAME = "observables"
 # cache
 
 
-def _cache_path(run_path: Path) -> Path:
-    return run_path.parent / CACHE_DIRNAME / (run_path.stem + ".npz")
+def _cache_path(run_path: Path, params: dict | None = None) -> Path:
+    """The run's cache: ``observables/<run>.npz`` at the default table parameters, and
+    ``observables/params-<digest>/<run>.npz`` at others (a digest of those that differ), so that
+    the tables of several parameter sets stay cached side by side."""
+    base = run_path.parent / CACHE_DIRNAME
+    if params is not None:
+        other = {k: v for k, v in table_params(**params).items()
+                 if json.dumps(v) != json.dumps(DEFAULT_PARAMS[k])}
+        if other:
+            import hashlib
+            key = hashlib.sha256(json.dumps(other, sort_keys=True).encode()).hexdigest()[:12]
+            base = base / f"params-{key}"
+    return base / (run_path.stem + ".npz")
 
 
 def table_params(**params) -> dict:
@@ -67,7 +79,7 @@ def _read_meta(cache: Path) -> dict | None:
 
 
 def _is_fresh(run_path: Path, params: dict) -> bool:
-    meta = _read_meta(_cache_path(run_path))
+    meta = _read_meta(_cache_path(run_path, params))
     return meta is not None and meta == json.loads(json.dumps(_source_meta(run_path, params)))
 
 
@@ -105,7 +117,7 @@ def _compute_one(run_path: str, params: dict) -> tuple[str, float]:
     frames, clusters = run_observables(path, **params)
     if _source_meta(path, params) != meta:
         raise RuntimeError(f"{path} changed while its observables were computed; run again")
-    _write_cache(_cache_path(path), meta, frames, clusters)
+    _write_cache(_cache_path(path, params), meta, frames, clusters)
     return run_path, time.perf_counter() - t0
 
 
@@ -165,7 +177,8 @@ def compute_observables(ensemble_dir, workers: int | None = None, progress: bool
         finally:
             if bar is not None:
                 bar.close()
-    return pd.DataFrame([{"run_file": f, "cache": str(_cache_path(Path(f))), "status": s, "seconds": t}
+    return pd.DataFrame([{"run_file": f, "cache": str(_cache_path(Path(f), p)), "status": s,
+                          "seconds": t}
                          for f, (s, t) in status.items()])
 
 
@@ -188,7 +201,7 @@ def load_observables(ensemble_dir, compute_missing: bool = True, workers: int | 
                 f"observables missing or stale for {len(stale)} run(s) (e.g. {stale[0].name}); "
                 f"run `tiltpile observables {ensemble_dir}` first")
         compute_observables(ensemble_dir, workers=workers, progress=progress, **params)
-    fr, cl = zip(*(_read_cache(_cache_path(f)) for f in files))
+    fr, cl = zip(*(_read_cache(_cache_path(f, p)) for f in files))
     frames = pd.concat(fr, ignore_index=True).sort_values(["run", "frame"], kind="stable")
     clusters = pd.concat(cl, ignore_index=True).sort_values(["run", "frame", "cluster"], kind="stable")
     if frames[["run", "frame"]].duplicated().any():
@@ -209,7 +222,7 @@ def load_run_observables(run_path, compute_missing: bool = True,
             raise FileNotFoundError(f"observables missing or stale for {path.name}; run "
                                     f"`tiltpile observables {path.parent}` first")
         _compute_one(str(path), p)
-    frames, clusters = _read_cache(_cache_path(path))
+    frames, clusters = _read_cache(_cache_path(path, p))
     frames = frames.sort_values(["run", "frame"], kind="stable")
     clusters = clusters.sort_values(["run", "frame", "cluster"], kind="stable")
     return frames.reset_index(drop=True), clusters.reset_index(drop=True)

@@ -70,6 +70,11 @@ DEFAULT_PARAMS = {
     "merge_gap": 0,          # avalanche merging of short quiet gaps (frames)
     "lost_gap": None,        # None: a contact is lost when its f_n drops to 0 (force definition);
                              # a gap g (d): only if it has also opened by more than g (geometric)
+    "contact_rule": "force",  # which pairs are contacts (z, rattlers, clusters, rigidity):
+                              # "force" (f_n > 0) | "touching" (every listed contact) | "gap:<g>"
+                              # (every pair within a surface gap g, d; contacts.parse_contact_rule)
+    "lost_rule": None,       # the rule whose list a lost contact leaves; None: contact_rule
+    "frame_stride": 1,       # analyse every k-th stored frame (lost contacts from k to k + stride)
     # first large slide of a run (run_table; avalanche.first_slide), not part of the cached tables:
     "slide_ke": None,        # KE per grain (m g d) above which a frame flows; None: the ensemble's
                              # Fig. 2a threshold (stats.ke_threshold)
@@ -82,7 +87,7 @@ RUN_TABLE_PARAMS = ("slide_ke", "slide_sustain_deg")
 # by contacts.rattler_mask; counting rule: contacts.py)
 FRAME_DOCS = {
     "run": "run id (the seed)",
-    "frame": "stored frame index k",
+    "frame": "stored frame index k (every frame_stride-th one is analysed)",
     "step": "time step of the frame",
     "time": "simulated time (sqrt(d / g))",
     "theta_deg": "inclination (deg)",
@@ -99,13 +104,14 @@ FRAME_DOCS = {
     "dz_gen_all": "dz_gen of all mobile grains, rattlers removed",
     "z_rest": "coordination of the bulk non-rattlers in no critical cluster",
     "n_rest": "bulk non-rattlers in no critical cluster",
-    "n_active": "active contacts (f_n > 0) with at least one mobile grain (walls and fixed "
-                "grains included)",
+    "n_active": "active contacts (contact_rule; default f_n > 0) with at least one mobile grain "
+                "(walls and fixed grains included)",
     "n_mobilized": "fully mobilized active contacts, counted as n_active",
     "ke_trans": "translational kinetic energy per mobile grain (m g d)",
     "ke_rot": "rotational kinetic energy per mobile grain (m g d)",
-    "n_lost": "contacts active at k and not at k + 1 (-1 at the last frame)",
-    "lost_fraction": "n_lost / active contacts at k (NaN at the last frame)",
+    "n_lost": "contacts active at k and not at the next analysed frame, both by lost_rule "
+              "(default: the contact rule; -1 at the last frame)",
+    "lost_fraction": "n_lost / contacts active by lost_rule at k (NaN at the last frame)",
     "n_failing": "mobile grains at an end of a lost contact (-1 at the last frame)",
     "n_failing_in_cluster": "failing grains that were in a critical cluster at k (-1 at the last "
                             "frame)",
@@ -186,6 +192,12 @@ def _check_params(p: dict) -> None:
         raise ValueError(f"cluster_region must be 'mobile' or 'bulk', got {p['cluster_region']!r}")
     if not 0.0 < p["cutoff"] < 1.0:
         raise ValueError(f"cutoff must be in (0, 1), got {p['cutoff']}")
+    _ct.parse_contact_rule(p["contact_rule"])
+    if p["lost_rule"] is not None:
+        _ct.parse_contact_rule(p["lost_rule"])
+    if isinstance(p["frame_stride"], bool) or not isinstance(p["frame_stride"], (int, np.integer)) \
+            or p["frame_stride"] < 1:
+        raise ValueError(f"frame_stride must be an integer >= 1, got {p['frame_stride']!r}")
     if p["lost_gap"] is not None and not p["lost_gap"] >= 0.0:
         raise ValueError(f"lost_gap must be None or >= 0 (d), got {p['lost_gap']}")
     if p["slide_ke"] is not None and not p["slide_ke"] > 0.0:
@@ -215,16 +227,23 @@ def frame_contacts(radius, fixed, box_length, position, pair, force, status, *, 
     """The contacts of one frame as every observable sees them (also the pile pictures).
 
     Contacts without a mobile grain (fixed-fixed, fixed-wall) carry no information and are
-    dropped; active = f_n > 0; mobilized by :func:`~tiltpile.analysis.contacts.mobilized_mask`
+    dropped; active: the contacts the rule ``contact_rule`` counts
+    (:func:`~tiltpile.analysis.contacts.parse_contact_rule`; "force": f_n > 0; a "gap:<g>" rule
+    adds every pair of bodies within the gap g that the run file does not list, with no force),
+    and lost_active those of ``lost_rule`` (None: the contact rule), what a lost contact leaves;
+    the bulk grains are found from the listed contacts under every rule; mobilized by :func:`~tiltpile.analysis.contacts.mobilized_mask`
     (sliding flag, or the threshold ``eps`` with mu / mu_wall); bulk grains by
     :func:`~tiltpile.analysis.contacts.bulk_mask`; critical clusters over mobile (or bulk) grains.
     params: analysis parameters (``DEFAULT_PARAMS``; this function reads eps, link,
-    cluster_region, ray_spacing and touch_tol). Returns dict pair, force, status (the kept
-    contacts), active, mobilized (per kept contact), bulk (N,) bool, top (N,) bool (free-surface
+    cluster_region, ray_spacing, touch_tol, contact_rule and lost_rule). Returns dict pair, force,
+    status (the kept contacts, near pairs of a gap rule appended), active, lost_active, mobilized
+    (per kept contact), bulk (N,) bool, top (N,) bool (free-surface
     grains, :func:`~tiltpile.analysis.contacts.top_layer`) and labels (N,) cluster labels (-1: none).
     """
     p = _params(params)
     eps, link, cluster_region = p["eps"], p["link"], p["cluster_region"]
+    rule = _ct.parse_contact_rule(p["contact_rule"])
+    lost_rule = rule if p["lost_rule"] is None else _ct.parse_contact_rule(p["lost_rule"])
     fixed = np.asarray(fixed, dtype=bool)
     n = fixed.size
     mobile = ~fixed
@@ -234,16 +253,24 @@ def frame_contacts(radius, fixed, box_length, position, pair, force, status, *, 
     moving = mobile[pair[:, 0]] | ((pair[:, 1] >= 0) & mobile[jj])
     pair, force = pair[moving], force[moving]
     status = None if status is None else np.asarray(status)[moving]
-    active = _ct.active_mask(force)
-    mu_c = mu if mu_wall is None else np.where(pair[:, 1] < 0, mu_wall, mu)
-    mobil = _ct.mobilized_mask(force, status, mu_c, eps)
     top = _ct.top_layer(position, radius, fixed, box_length, p["ray_spacing"])
+    # the layers from the listed contacts, whatever the rule (the bulk is the same set of grains)
     bulk = _ct.bulk_mask(position, radius, fixed, pair, box_length, p["ray_spacing"],
                          p["touch_tol"], top=top)
+    reach = [g for _, g in (rule, lost_rule) if g is not None]
+    listed, gaps = np.ones(len(pair), dtype=bool), None
+    if reach:
+        pair, force, status, listed, gaps = _ct.with_near_pairs(
+            pair, force, status, position, radius, fixed, box_length, max(reach))
+    active = _ct.rule_mask(*rule, force, listed, gaps)
+    lost_active = active if lost_rule == rule else _ct.rule_mask(*lost_rule, force, listed, gaps)
+    mu_c = mu if mu_wall is None else np.where(pair[:, 1] < 0, mu_wall, mu)
+    mobil = _ct.mobilized_mask(force, status, mu_c, eps)
     include = bulk if cluster_region == "bulk" else mobile
     labels = _cl.critical_clusters(n, pair, active, mobil, include, link)
     return {"pair": pair, "force": force, "status": status, "active": active,
-            "mobilized": mobil, "bulk": bulk, "top": top, "labels": labels}
+            "lost_active": lost_active, "mobilized": mobil, "bulk": bulk, "top": top,
+            "labels": labels}
 
 
 def lost_between(prev: dict, cur: dict, n: int, radius=None, box_length=None,
@@ -311,8 +338,8 @@ _PRODUCERS: list[Producer] = []
 # what the stages are given (run_observables, frame_observables)
 FRAME_INPUTS = ("radius", "fixed", "box_length", "position", "velocity", "omega", "pair", "force",
                 "status", "theta_deg", "mu", "mu_wall", "params")
-RUN_INPUTS = ("run_id", "n_frames", "step", "time", "theta", "iterations", "residual",
-              "cluster_frame", "params")
+RUN_INPUTS = ("run_id", "n_frames", "frame_index", "step", "time", "theta", "iterations",
+              "residual", "cluster_frame", "params")
 
 
 def _produces(stage: str, gives, reads=(), fill=None):
@@ -503,7 +530,7 @@ def _mobile_position(q):
 def _keep(q) -> dict:
     """What frame k's contacts leave for comparison with frame k + 1 (failure_between)."""
     fc = q["contacts"]
-    return {"pair": fc["pair"], "active": fc["active"], "labels": fc["labels"],
+    return {"pair": fc["pair"], "active": fc["lost_active"], "labels": fc["labels"],
             "position": q["position"]}
 
 
@@ -522,10 +549,10 @@ def _failure(prev, cur):
 
 @_produces("run", gives=("frames.run", "frames.frame", "frames.step", "frames.time",
                          "frames.theta_deg", "frames.iterations", "frames.residual"),
-           reads=("run_id", "n_frames", "step", "time", "theta", "iterations", "residual"))
+           reads=("run_id", "frame_index", "step", "time", "theta", "iterations", "residual"))
 def _run_source(q):
-    """What the run file says of each frame."""
-    return {"frames.run": q["run_id"], "frames.frame": np.arange(q["n_frames"], dtype=np.int64),
+    """What the run file says of each analysed frame (every ``frame_stride``-th stored one)."""
+    return {"frames.run": q["run_id"], "frames.frame": np.asarray(q["frame_index"], dtype=np.int64),
             "frames.step": np.asarray(q["step"], dtype=np.int64),
             "frames.time": np.asarray(q["time"], dtype=float), "frames.theta_deg": q["theta"],
             "frames.iterations": np.asarray(q["iterations"]),
@@ -560,9 +587,12 @@ def _displacement(q):
     return {"frames.mean_displacement": mean_d, "frames.max_displacement": max_d}
 
 
-@_produces("run", gives=("clusters.run", "clusters.frame"), reads=("run_id", "cluster_frame"))
+@_produces("run", gives=("clusters.run", "clusters.frame"),
+           reads=("run_id", "cluster_frame", "frame_index"))
 def _cluster_keys(q):
-    return {"clusters.run": q["run_id"], "clusters.frame": q["cluster_frame"]}
+    """The run and the stored frame of each cluster (cluster_frame: its row of the frame table)."""
+    return {"clusters.run": q["run_id"],
+            "clusters.frame": np.asarray(q["frame_index"], dtype=np.int64)[q["cluster_frame"]]}
 
 
 @_produces("run", gives=("clusters.theta_deg",), reads=("cluster_frame", "frames.theta_deg"))
@@ -651,8 +681,10 @@ def run_observables(run, run_id: int | None = None, **params) -> tuple[pd.DataFr
     radius = np.asarray(run.radius, dtype=float)
     fixed = np.asarray(run.fixed, dtype=bool)
     L = float(run.box_length)
-    nfr = int(run.n_frames)
-    theta = np.asarray(run.theta_deg, dtype=float)
+    # the analysed frames: every frame_stride-th stored one, from the first
+    index = np.arange(0, int(run.n_frames), p["frame_stride"], dtype=np.int64)
+    nfr = len(index)
+    theta = np.asarray(run.theta_deg, dtype=float)[index]
     frame_p = [pr for pr in _PRODUCERS if pr.stage == "frame"]
     pair_p = [pr for pr in _PRODUCERS if pr.stage == "pair"]
     run_p = [pr for pr in _PRODUCERS if pr.stage == "run"]
@@ -660,11 +692,12 @@ def run_observables(run, run_id: int | None = None, **params) -> tuple[pd.DataFr
     collected = {n: [] for pr in run_p for n in pr.reads if n in frame_gives and "." not in n}
     rows, tabs, counts = [], [], []
     prev = None
-    for k in range(nfr):
+    for pos, k in enumerate(index):
+        k = int(k)
         pair, force, status = run.contacts(k)
         q = _frame_stage(_frame_inputs(radius, fixed, L, np.asarray(run.position(k), dtype=float),
                                        run.velocity(k), run.omega(k), pair, force, status,
-                                       theta[k], mu, mu_wall, p))
+                                       theta[pos], mu, mu_wall, p))
         row = _split(q, "frames")
         if prev is not None:
             for pr in pair_p:
@@ -680,8 +713,10 @@ def run_observables(run, run_id: int | None = None, **params) -> tuple[pd.DataFr
         prev = q
     frames = pd.DataFrame(rows)
     clusters = pd.concat(tabs, ignore_index=True) if tabs else pd.DataFrame()
-    rq = {"run_id": rid, "n_frames": nfr, "step": run.step, "time": run.time, "theta": theta,
-          "iterations": run.iterations, "residual": run.residual,
+    rq = {"run_id": rid, "n_frames": nfr, "frame_index": index,
+          "step": np.asarray(run.step)[index], "time": np.asarray(run.time)[index], "theta": theta,
+          "iterations": np.asarray(run.iterations)[index],
+          "residual": np.asarray(run.residual)[index],
           "cluster_frame": np.repeat(np.arange(nfr, dtype=np.int64), counts), "params": p}
     rq = _read_only(rq)
     rq.update(_read_only({f"frames.{c}": frames[c].to_numpy() for c in frames.columns}))

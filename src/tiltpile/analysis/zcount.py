@@ -140,44 +140,9 @@ def force_mask(fn: np.ndarray, threshold: float) -> np.ndarray:
     return fn > threshold * fn[act].mean()
 
 
-def gap_contacts(position: np.ndarray, radius: np.ndarray, fixed: np.ndarray, box_length: float,
-                 reach: float) -> tuple[np.ndarray, np.ndarray]:
-    """Every pair of bodies whose surface gap is <= ``reach`` (d), from positions and radii.
-
-    Grain pairs (i < j; scipy.spatial.cKDTree over centres within r_i + r_j + reach, at most
-    2 r_max + reach) with at least one mobile grain, and mobile grains with the floor (gap y - r,
-    j = -1), the left wall (x - r, j = -2) and the right wall (L - x - r, j = -3). Fixed grains
-    have no wall contacts (as in the solver's candidate list). Gaps are negative for overlaps.
-
-    position (N, 2), radius (N,), fixed (N,) bool, box_length L, reach >= 0.
-    Returns pair (C, 2) int64 sorted by (i, j), gap (C,) float.
-    """
-    from scipy.spatial import cKDTree
-
-    pos = np.asarray(position, dtype=float).reshape(-1, 2)
-    r = np.asarray(radius, dtype=float).ravel()
-    fixed = np.asarray(fixed, dtype=bool).ravel()
-    if not reach >= 0.0:
-        raise ValueError(f"gap_contacts: reach must be >= 0 (d), got {reach}")
-    n = r.size
-    if n == 0:
-        return np.empty((0, 2), dtype=np.int64), np.empty(0)
-    pp = cKDTree(pos).query_pairs(2.0 * r.max() + reach, output_type="ndarray").astype(np.int64)
-    pp = np.sort(pp.reshape(-1, 2), axis=1)
-    gg = np.linalg.norm(pos[pp[:, 0]] - pos[pp[:, 1]], axis=1) - r[pp[:, 0]] - r[pp[:, 1]]
-    keep = (gg <= reach) & ~(fixed[pp[:, 0]] & fixed[pp[:, 1]])
-    pairs, gaps = [pp[keep]], [gg[keep]]
-    mob = np.flatnonzero(~fixed)
-    for wall, wgap in ((_ct.WALL_FLOOR, pos[mob, 1] - r[mob]),
-                       (_ct.WALL_LEFT, pos[mob, 0] - r[mob]),
-                       (_ct.WALL_RIGHT, box_length - pos[mob, 0] - r[mob])):
-        w = wgap <= reach
-        pairs.append(np.column_stack([mob[w], np.full(int(w.sum()), wall)]).astype(np.int64))
-        gaps.append(wgap[w])
-    pair = np.concatenate(pairs).reshape(-1, 2)
-    gap = np.concatenate(gaps)
-    order = np.lexsort((pair[:, 1], pair[:, 0]))
-    return pair[order], gap[order]
+#: every pair of bodies within a surface gap (moved to :mod:`tiltpile.analysis.contacts`, where the
+#: analysis's contact rules use it; kept here under its old name)
+gap_contacts = _ct.gap_contacts
 
 
 # ----------------------------------------------------------------------------------------------

@@ -19,6 +19,7 @@ nothing when imported (``python -m tiltpile.bench`` lists them):
 ``store_filters``      size and time of the run file's checksums and of compression
 ``dask_overhead``      the CPU dask's housekeeping takes from an ensemble's runs
 ``ke_threshold``       how Fig. 2a's kinetic-energy threshold moves as runs are added or left out
+``code_change``        whether an analysis edit keeps the tables' values (old commit against this one)
 
 Measurement code sits beside the command line: it imports ``config``, ``sim``, ``store`` and
 ``analysis``, never ``figures`` or ``cli`` (``tests/test_layers.py``).
@@ -26,4 +27,4 @@ Measurement code sits beside the command line: it imports ``config``, ``sim``, `
 
 STUDIES = ("pile", "timing", "chart", "solver_micro", "solver_variants", "flow_caps",
            "precursor_caps", "settle", "coarse", "compare_ensembles", "guard", "store_filters",
-           "dask_overhead", "ke_threshold")
+           "dask_overhead", "ke_threshold", "code_change")
