@@ -263,7 +263,8 @@ REPORT_ROOT := $(if $(filter $(REPORT_SCALES),$(notdir $(FIGURES))),$(patsubst %
 REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparation.json \
                   $(REPORT_ROOT)/smoke/fig2_avalanche_criterion.json \
                   $(foreach s,/ /default-fresh/ /paper/ /paper-fresh/,$(REPORT_ROOT)$(s)fig*.json) \
-                  $(REPORT_ROOT)/preparation.json $(REPORT_ROOT)/zcount.json)
+                  $(REPORT_ROOT)/preparation.json $(REPORT_ROOT)/zcount.json \
+                  $(REPORT_ROOT)/definitions.json)
 $(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli/report.py src/tiltpile/__init__.py \
            | $(STAMP)
 	$(PY) -m tiltpile report --figures $(FIGURES) --out $@
@@ -392,6 +393,16 @@ $(PREP_EXECUTED)/.zcount: $(ZCOUNT_CODE) $(PREP_EXECUTED)/.inputs \
 	@mkdir -p $(PREP_FIGURES)
 	$(ANALYSIS_ENV) $(PY) -m tiltpile zcount $(PREP_DIRS) --out $(PREP_FIGURES)/zcount $(if $(PREP_WORKERS),--workers $(PREP_WORKERS))
 	@touch $@
+
+# `make definitions [PRESET=default] [DATA=dir] [G=g]`: every figure number of the ensemble's run
+# files under each definition the paper leaves open (contact rule, lost rule, frame stride, Fig. 3's
+# peaks; `tiltpile definitions`, docs/cli.md), into FIGURES/definitions.json, which the report
+# reads ("What the disagreements depend on"). G: the contact list's gap (default: fitted by
+# <z> = 3.5). Needs the run files; about 10 times `make figures`' analysis.
+.PHONY: definitions
+definitions: | $(STAMP)
+	@test -n "$(wildcard $(DATA)/run_*.h5)" || { echo "make definitions: no run files in DATA=$(DATA) (the definitions need them, not records)"; exit 2; }
+	$(ANALYSIS_ENV) $(PY) -m tiltpile definitions $(DATA) --out $(FIGURES)/definitions.json $(if $(G),--g $(G))
 
 # `make study KEY=section.key VALUES="v1 v2 ..." [PRESET=default] [RUNS=M] [WORKERS=W] [NAME=name]
 #             [HISTORY=preset|repose+D] [DATA=/path/outside/the/checkout] [STUDY_FIGURES=dir]`:

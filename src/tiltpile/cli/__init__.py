@@ -19,7 +19,7 @@ import sys
 from tiltpile import config as cfgmod
 
 COMMANDS = ("simulate", "dem", "ensemble", "observables", "verify", "report", "bench", "info", "export",
-            "movie", "repose", "zcount", "record", "same-piles", "study")
+            "movie", "repose", "zcount", "record", "same-piles", "study", "definitions")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -134,16 +134,20 @@ def _given_ensemble(ens):
         _data.load = real
 
 
-def figure_documents(ens, stems=FIGURES, notebooks_dir="notebooks") -> dict[str, dict]:
+def figure_documents(ens, stems=FIGURES, notebooks_dir="notebooks",
+                     overrides: dict | None = None) -> dict[str, dict]:
     """{stem: JSON document} of each figure on ``ens``, computed by the figure's notebook: its
-    parameters cell (the defaults ``make figures`` uses) and its code cells, the ensemble given in
-    place of the one the notebook loads, without drawing. Each document is what the figure's
-    JSON would hold (``style.save``: ``figure``, the ensemble's description, ``numbers``)."""
+    parameters cell (the defaults ``make figures`` uses, with ``overrides`` of the parameters a
+    notebook declares applied, as ``NB="-p NAME VALUE"`` would) and its code cells, the ensemble
+    given in place of the one the notebook loads, without drawing. Each document is what the
+    figure's JSON would hold (``style.save``: ``figure``, the ensemble's description,
+    ``numbers``)."""
     out = {}
     for stem in stems:
         params, cells = _notebook_cells(stem, notebooks_dir)
         ns: dict = {}
         exec(compile(params, f"{stem}:parameters", "exec"), ns)
+        ns.update({k: v for k, v in (overrides or {}).items() if k in ns})
         with _given_ensemble(ens):
             for k, src in enumerate(cells):
                 exec(compile(src, f"{stem}:cell{k}", "exec"), ns)

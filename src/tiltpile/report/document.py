@@ -13,7 +13,8 @@ import json
 from pathlib import Path
 
 from .claims import CLAIMS, RULES
-from .judging import AGREES, MISSING, Claim
+from . import definitions as _definitions
+from .judging import AGREES, DISAGREES, MISSING, Claim
 from .scales import render_scales, scale_dirs
 from .studies import CITES, STUDIES, load_studies, render_preparation
 
@@ -57,6 +58,9 @@ def judge_all(figs: dict[str, dict], claims: list[Claim],
         ours, verdict, note = c.judge({**doc.get("numbers", {}), "history": doc.get("history"),
                                        "n_grains": doc.get("n_grains")})
         cite = CITES[c.key](studies) if studies and c.key in CITES else ""
+        if studies and verdict == DISAGREES:
+            cite = " ".join(x for x in (cite, _definitions.cite(studies.get("definitions"),
+                                                                  claims, c.key)) if x)
         out.append((c, ours, verdict, " ".join(x for x in (note, cite) if x), source(doc)))
     return out
 
@@ -199,7 +203,8 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
     studies = load_studies(figures_dir)
     text = render(figs, claims,
                   render_scales(figures_dir) + render_by_scale(figures_dir, claims)
-                  + render_preparation(figures_dir), studies)
+                  + render_preparation(figures_dir)
+                  + _definitions.render(studies.get("definitions"), claims), studies)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.tmp")

@@ -12,7 +12,8 @@ from pathlib import Path
 from .judging import _f, _num
 from .scales import scale_dirs
 
-STUDIES = {"preparation": "preparation.json", "zcount": "zcount.json"}
+STUDIES = {"preparation": "preparation.json", "zcount": "zcount.json",
+           "definitions": "definitions.json"}
 
 
 def load_studies(figures_dir) -> dict[str, dict]:

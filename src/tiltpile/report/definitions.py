@@ -1,0 +1,144 @@
+"""The report's section "What the disagreements depend on": every claim judged under each
+definition of the definitions study (``definitions.json`` of ``tiltpile definitions``, one per
+scale's figures directory), and for each claim that disagrees under the analysis's own
+definition the definitions that change its verdict, by measurement.
+
+The judges are the claims' own (:mod:`.claims`), applied to each definition's figure documents
+as to the figures' JSON (:func:`tiltpile.report.document.judge_all`'s rule, without the notes).
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from .judging import AGREES, DISAGREES, INCONCLUSIVE, MISSING, Claim, _f, _num
+
+FILE = "definitions.json"
+#: the definition the analysis uses (the study's first)
+OURS = "force"
+_MARK = {AGREES: "agrees", DISAGREES: "**disagrees**", INCONCLUSIVE: "inconclusive",
+         MISSING: "n/a"}
+
+
+def load(figures_dir) -> dict | None:
+    """The study's JSON of ``figures_dir`` (None when it was not run there)."""
+    p = Path(figures_dir) / FILE
+    return json.loads(p.read_text()) if p.is_file() else None
+
+
+def verdicts(doc: dict, claims: list[Claim]) -> dict[str, dict[str, tuple[str, str]]]:
+    """{definition key: {claim key: (ours, verdict)}} of every definition of the study."""
+    out = {}
+    for d in doc["definitions"]:
+        figs = d["documents"]
+        row = {}
+        for c in claims:
+            stem = next((s for s in figs if s.startswith(c.figure + "_")), None)
+            if stem is None:
+                row[c.key] = ("n/a", MISSING)
+                continue
+            fd = figs[stem]
+            ours, verdict, _ = c.judge({**fd.get("numbers", {}), "history": fd.get("history"),
+                                        "n_grains": fd.get("n_grains")})
+            row[c.key] = (ours, verdict)
+        out[d["key"]] = row
+    return out
+
+
+def depends_on(doc: dict, claims: list[Claim], key: str) -> str | None:
+    """One line: what the verdict of claim ``key`` depends on in the study: the definitions
+    that flip it from the analysis's own, or that none of those tried does (None when the
+    claim is not in the study)."""
+    v = verdicts(doc, claims)
+    if OURS not in v or key not in v[OURS]:
+        return None
+    base = v[OURS][key][1]
+    labels = {d["key"]: d["label"] for d in doc["definitions"]}
+    moved = {}
+    for dk, row in v.items():
+        if dk != OURS and row[key][1] != base:
+            moved.setdefault(row[key][1], []).append(labels[dk])
+    if not moved:
+        return f"{base} under every definition tried ({len(v)})"
+    return "; ".join(f"{verdict} under {'; '.join(names)}" for verdict, names in moved.items())
+
+
+def counts(row: dict) -> dict[str, int]:
+    """How many claims of a definition's verdicts agree, disagree, are inconclusive."""
+    out = {AGREES: 0, DISAGREES: 0, INCONCLUSIVE: 0, MISSING: 0}
+    for _, verdict in row.values():
+        out[verdict] += 1
+    return out
+
+
+def render(doc: dict | None, claims: list[Claim], scale: str = "") -> list[str]:
+    """Markdown lines of the section for one scale's study ([] without one)."""
+    if not doc:
+        return []
+    v = verdicts(doc, claims)
+    defs = doc["definitions"]
+    fit = doc.get("fit") or {}
+    g = _num(fit.get("g"))
+    how = ("given" if fit.get("given") else
+           f"fitted by <z> = {_f(_num(fit.get('target')), '.2g')} on the quiet frames "
+           f"({fit.get('n_quiet_frames')} frames)")
+    z_list = _z_of(doc, "list")
+    lines = ["", f"## What the disagreements depend on{f' ({scale})' if scale else ''}", "",
+             f"From `{doc.get('command') or 'tiltpile definitions'}`: {doc.get('n_runs')} runs of "
+             f"{doc.get('n_grains')} grains ({(doc.get('history') or {}).get('label', '')}), every "
+             "claim judged by its own rule on the figure numbers each definition gives. The one "
+             f"number fitted is the gap of the contact list, g = {_f(g, '.3g')} d ({how}); the "
+             f"tables on that list give quiet-frame <z> = {_f(z_list, '.3f')}.", ""]
+    lines += [f"- **{d['label']}**: {d['what']}" + (f" (`{_params_text(d)}`)" if _params_text(d)
+                                                     else "") for d in defs]
+    lines += ["", "| claim | " + " | ".join(d["label"] for d in defs) + " |",
+              "|---|" + "---|" * len(defs)]
+    for c in claims:
+        lines.append(f"| {c.text} | " + " | ".join(_MARK[v[d['key']][c.key][1]] for d in defs) + " |")
+    tally = [counts(v[d["key"]]) for d in defs]
+    lines.append("| *agree / disagree / inconclusive* | "
+                 + " | ".join(f"{t[AGREES]} / {t[DISAGREES]} / {t[INCONCLUSIVE]}" for t in tally)
+                 + " |")
+    lines += ["", "What each disagreement under our definition depends on:", ""]
+    base = v.get(OURS, {})
+    for c in claims:
+        if base.get(c.key, ("", ""))[1] == DISAGREES:
+            lines.append(f"- **{c.text}**: {depends_on(doc, claims, c.key)}.")
+    keeps = [d for d, t in zip(defs, tally) if d["key"] != OURS
+             and _keeps_agreements(v, d["key"], claims)]
+    best = max(zip(defs, tally), key=lambda x: (x[1][AGREES], -x[1][DISAGREES]))
+    lines += ["", f"Most agreements: **{best[0]['label']}** ({best[1][AGREES]} agree, "
+              f"{best[1][DISAGREES]} disagree). Definitions that break none of the agreements "
+              "under ours: " + ("; ".join(d["label"] for d in keeps) if keeps else "none") + "."]
+    return lines
+
+
+def _keeps_agreements(v: dict, key: str, claims: list[Claim]) -> bool:
+    return all(v[key][c.key][1] == AGREES for c in claims if v[OURS][c.key][1] == AGREES)
+
+
+def _z_of(doc: dict, key: str) -> float:
+    for d in doc["definitions"]:
+        if d["key"] == key:
+            n = (d["documents"].get("fig2_avalanche_criterion") or {}).get("numbers", {})
+            return _num(n.get("z_quiet_run_mean"))
+    return math.nan
+
+
+def _params_text(d: dict) -> str:
+    p = {**d.get("params", {}), **d.get("notebook", {})}
+    return " ".join(f"-p {k} {v}" for k, v in p.items())
+
+
+def cite(doc: dict | None, claims: list[Claim], key: str) -> str:
+    """The sentence a disagreeing claim's note cites: what its verdict depends on ('' without
+    the study)."""
+    if not doc:
+        return ""
+    dep = depends_on(doc, claims, key)
+    if dep is None:
+        return ""
+    return (f"By definition (\"What the disagreements depend on\", {doc.get('n_runs')} runs of "
+            f"{doc.get('n_grains')} grains): {dep}.")

@@ -1,0 +1,131 @@
+"""The definitions study (tiltpile definitions) and the report's section built from it."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from tiltpile.figures import definitions as fd
+from tiltpile.report import definitions as rd
+from tiltpile.report.claims import CLAIMS
+from tiltpile.report.document import judge_all, load_figures
+from tiltpile.report.judging import AGREES, DISAGREES
+
+ROOT = Path(__file__).resolve().parents[2]
+
+
+@pytest.fixture(scope="module")
+def smoke_study(smoke_ensemble):
+    """The study on the three smoke piles, with the force rule, the list and the peak rules."""
+    return fd.study(smoke_ensemble, "smoke", progress=False, only=("list", "peaks-c0"),
+                    notebooks_dir=ROOT / "notebooks")
+
+
+def test_the_list_fitted_to_three_and_a_half_gives_it(smoke_study):
+    """The one number fitted: the gap at which the quiet frames' <z> of the list is 3.5. The
+    tables of that list (every observable on it) give the quiet <z> within 0.1 of 3.5, where the
+    force rule's is far below, and the fit's curve rises through 3.5 at g."""
+    fit = smoke_study["fit"]
+    g = fit["g"]
+    assert 1e-4 < g < 2e-2
+    z = dict(zip(fit["grid"], fit["z"]))
+    assert min(z.values()) < 3.5 < max(z.values())
+    assert all(v < 3.5 for k, v in z.items() if k < g / 1.2)
+    assert all(v > 3.5 for k, v in z.items() if k > g * 1.2)
+    by_key = {d["key"]: d for d in smoke_study["definitions"]}
+    assert by_key["list"]["params"] == {"contact_rule": f"gap:{g:g}"}
+
+    def z_quiet(key):
+        return by_key[key]["documents"]["fig2_avalanche_criterion"]["numbers"]["z_quiet_run_mean"]
+
+    assert abs(z_quiet("list") - 3.5) < 0.1
+    assert z_quiet("force") < 3.4
+
+
+def test_a_notebook_parameter_recomputes_its_figure_only(smoke_study):
+    """peaks-c0 sets Fig. 3's peak rule: its Fig. 3 reads the enhancement as C(0), and every
+    other figure is the force rule's, document for document."""
+    by_key = {d["key"]: d for d in smoke_study["definitions"]}
+    force, c0 = by_key["force"]["documents"], by_key["peaks-c0"]["documents"]
+    for stem in force:
+        if stem != "fig3_clusters_failure":
+            assert c0[stem] == force[stem]
+    n = c0["fig3_clusters_failure"]["numbers"]
+    assert n["enhancement_tau0"] == pytest.approx(n["C_tau0"])
+    assert force["fig3_clusters_failure"]["numbers"]["enhancement_tau0"] != n["enhancement_tau0"]
+
+
+def test_the_report_judges_each_definition_as_the_figures(tmp_path):
+    """A study whose definitions are the committed figures of two scales: each column of the
+    section is judge_all's verdicts on that scale's JSON, and a claim disagreeing under the first
+    names the definitions that flip it."""
+    a, b = load_figures(ROOT / "figures"), load_figures(ROOT / "figures" / "paper")
+    doc = {"n_runs": 6, "n_grains": 1000, "fit": {"g": 0.002, "target": 3.5},
+           "definitions": [
+               {"key": "force", "label": "force (ours)", "what": "ours", "params": {},
+                "notebook": {}, "documents": a},
+               {"key": "list", "label": "other", "what": "the paper scale's numbers",
+                "params": {"contact_rule": "gap:0.002"}, "notebook": {}, "documents": b}]}
+    v = rd.verdicts(doc, CLAIMS)
+    for key, figs in (("force", a), ("list", b)):
+        assert {c.key: verdict for c, _, verdict, _, _ in judge_all(figs, CLAIMS)} == \
+            {k: verdict for k, (_, verdict) in v[key].items()}
+    lines = rd.render(doc, CLAIMS)
+    assert lines[1] == "## What the disagreements depend on"
+    table = [ln for ln in lines if ln.startswith("| ") and "claim" not in ln and "*agree" not in ln]
+    assert len(table) == len(CLAIMS)
+    for c in CLAIMS:
+        if v["force"][c.key][1] == DISAGREES:
+            dep = rd.depends_on(doc, CLAIMS, c.key)
+            flipped = v["list"][c.key][1] != DISAGREES
+            assert ("under other" in dep) == flipped
+            assert ("every definition tried" in dep) == (not flipped)
+    tally = rd.counts(v["force"])
+    assert tally[AGREES] == sum(1 for _, verdict in v["force"].values() if verdict == AGREES)
+
+
+def test_the_report_cites_the_study_in_the_notes_of_disagreeing_claims(tmp_path):
+    """With figures/definitions.json beside the figures, each disagreeing claim's note says what
+    its verdict depends on, and the report has the section; without it, neither."""
+    from tiltpile.report.document import write_report
+
+    figs = tmp_path / "figures"
+    figs.mkdir()
+    for p in (ROOT / "figures").glob("fig*.json"):
+        shutil.copy(p, figs / p.name)
+    plain = write_report(figs, tmp_path / "plain.md").read_text()
+    assert "What the disagreements depend on" not in plain
+    a = load_figures(figs)
+    doc = {"n_runs": 6, "n_grains": 1000, "fit": {"g": 0.002, "target": 3.5},
+           "definitions": [{"key": "force", "label": "force (ours)", "what": "ours", "params": {},
+                            "notebook": {}, "documents": a}]}
+    (figs / "definitions.json").write_text(json.dumps(doc))
+    text = write_report(figs, tmp_path / "with.md").read_text()
+    assert "## What the disagreements depend on" in text
+    notes = text.split("## Notes")[1].split("\n## ")[0]
+    n_dis = sum(1 for c, _, verdict, _, _ in judge_all(a, CLAIMS) if verdict == DISAGREES)
+    assert notes.count("By definition (") == n_dis > 0
+
+
+def test_bad_input_stops_in_one_line_with_nothing_written(tmp_path, capsys):
+    from tiltpile.cli import main
+
+    out = tmp_path / "defs.json"
+    empty = tmp_path / "empty"
+    empty.mkdir()
+    for argv, words in ((["definitions", str(tmp_path / "nope"), "--out", str(out)], "no such"),
+                        (["definitions", str(empty), "--out", str(out)], "no run_*.h5"),
+                        (["definitions", str(empty), "--out", str(tmp_path)], "no run_*.h5")):
+        assert main(argv) == 2
+        err = capsys.readouterr().err.strip()
+        assert words in err and "\n" not in err
+    assert not out.exists()
+
+
+def test_an_unknown_definition_is_refused_before_anything_runs(tmp_path):
+    (tmp_path / "run_0000.h5").write_bytes(b"")   # never opened: the keys are checked first
+    with pytest.raises(ValueError, match="no definition \\['nope'\\]"):
+        fd.study(tmp_path, only=("nope",), progress=False, notebooks_dir=ROOT / "notebooks")
