@@ -196,6 +196,37 @@ def test_crossing_uses_the_interval_over_runs(tmp_path):
     assert v["crossing"] == "agrees"
 
 
+def _fig3(**kw):
+    return _doc("fig3_clusters_failure", dict({"C_argmax_tau": 0, "C_tau0": 0.75,
+                                               "enhancement_tau0": 2.23, "n_peaks": 1050}, **kw))
+
+
+def test_enhancement_names_the_peak_rule_its_numbers_were_computed_with(tmp_path):
+    """fig3 writes peak_rule only off its default ("sigma"): without it the note describes the
+    default peak; with it, that rule's; with "c0" the number is C(0) and is judged as one."""
+    from tiltpile.analysis import stats
+    from tiltpile.report import paper
+
+    assert set(paper.PEAKS) | {"c0"} == set(stats.PEAK_RULES)
+    assert paper.PEAK_DEFAULT == stats.DEFAULT_PEAK_RULE
+    v, text = _verdicts(tmp_path, [_fig3()])
+    assert v["enhancement"] == "disagrees"
+    assert "+223% right after 1050 peaks" in text
+    assert "(ours: a local maximum more than one standard deviation above" in _note(text, "enhancement")
+    v, text = _verdicts(tmp_path, [_fig3(peak_rule="local", enhancement_tau0=-0.07, n_peaks=5397)])
+    assert v["enhancement"] == "disagrees"
+    assert "(ours: any local maximum of S_m within a quiet period" in _note(text, "enhancement")
+    assert "-7% right after 5397 peaks of the largest cluster (peak: any local maximum" in text
+    v, text = _verdicts(tmp_path, [_fig3(peak_rule="decile", enhancement_tau0=0.41, n_peaks=200)])
+    assert v["enhancement"] == "agrees" and "top decile" in _row(text, "Failure rate right after")
+    v, text = _verdicts(tmp_path, [_fig3(peak_rule="c0", enhancement_tau0=0.75, n_peaks=18470)])
+    assert v["enhancement"] == "disagrees"
+    assert "C(0) = 0.75 read as the +40% (18470 pairs of quiet frames)" in text
+    assert "read as C(0)" in _note(text, "enhancement")
+    v, _ = _verdicts(tmp_path, [_fig3(peak_rule="c0", enhancement_tau0=0.4, n_peaks=18470)])
+    assert v["enhancement"] == "agrees"
+
+
 def test_scales_table_says_not_yet_run(tmp_path):
     _write(tmp_path, [_fig2()])
     text = report.write_report(tmp_path, tmp_path / "R.md").read_text()

@@ -192,14 +192,35 @@ def _c_peak(n: dict):
     return ours, _verdict(t == 0, t is not None and math.isfinite(c0)), note
 
 
+# what fig3's peak_rule calls a peak of S_m (tiltpile.analysis.stats.PEAK_RULES; "c0" reads the
+# +40% as C(0) and has no peaks); fig3 writes peak_rule into its numbers only off the default
+PEAK_DEFAULT = "sigma"
+PEAKS = {"sigma": "a local maximum more than one standard deviation above the quiet-period mean",
+         "local": "any local maximum of S_m within a quiet period, without a threshold",
+         "decile": "any quiet frame in the top decile of its run's quiet S_m, a local maximum or "
+                   "not"}
+
+
 def _enhancement(n: dict):
+    rule = n.get("peak_rule") or PEAK_DEFAULT
     e, k = _num(n.get("enhancement_tau0")), n.get("n_peaks")
-    ours = f"{_f(e, '+.0%')} right after {k} peaks of the largest cluster"
     ok = 0.2 <= e <= 0.6
+    others = ", ".join(f'"{r}"' for r in (*PEAKS, "c0") if r != rule)
+    if rule == "c0":
+        ours = f"C(0) = {_f(e, '.2f')} read as the +40% ({k} pairs of quiet frames)"
+        note = "" if ok or not math.isfinite(e) else (
+            "read as C(0) (fig3's peak_rule \"c0\": the paper's +40% as the correlation at "
+            "tau = 0, not as a rate after peaks), our C(0) is outside 0.2-0.6; the other readings "
+            f"are fig3's peak_rule {others}.")
+        return ours, _verdict(ok, math.isfinite(e) and (k or 0) >= 10), note
+    ours = f"{_f(e, '+.0%')} right after {k} peaks of the largest cluster"
+    if rule != PEAK_DEFAULT:
+        ours += f" (peak: {PEAKS.get(rule, rule)})"
     note = "" if ok or not math.isfinite(e) else (
-        "the size of the enhancement depends on what counts as a peak of S_m (ours: a local maximum "
-        "more than one standard deviation above the quiet-period mean, stats.cluster_peaks); the "
-        "paper does not define it. The sign is robust to that choice, the factor is not.")
+        "the size of the enhancement depends on what counts as a peak of S_m (ours: "
+        f"{PEAKS.get(rule, rule)}, stats.cluster_peaks); the paper does not define it. fig3's "
+        f"peak_rule gives the other readings ({others}; \"c0\" reads the +40% as C(0)); "
+        "docs/figures.md (Fig. 3) gives what each measures.")
     return ours, _verdict(ok, math.isfinite(e) and (k or 0) >= 10), note
 
 
@@ -368,7 +389,10 @@ RULES_PAPER: dict[str, Rule] = {
     "c_peak": Rule("\"the maximum correlation happens at tau = 0\"", "argmax of C(tau) == 0."),
     "enhancement": Rule("\"just after the cluster size peaks, the failure rate is enhanced by about 40%\"",
                         "failure rate right after a peak of S_m over its quiet mean, minus 1; agrees in "
-                        "[20%, 60%] (\"about\": +-50% of the value). Needs >= 10 peaks."),
+                        "[20%, 60%] (\"about\": +-50% of the value). Needs >= 10 peaks. A peak is "
+                        "fig3's peak_rule, by default a quiet local maximum more than one standard "
+                        "deviation above its run's quiet mean; with peak_rule \"c0\" the +40% is "
+                        "read as C(0), judged in the same interval."),
     "clusters_straddle": Rule("\"the clusters straddle the marginal stability line during the quiet "
                               "period\"",
                               "agrees if at least 10% of quiet clusters are below and at least 10% on "
