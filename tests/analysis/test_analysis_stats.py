@@ -151,6 +151,120 @@ def test_failure_enhancement_after_cluster_peaks():
     assert ens.loc[1, "enhancement"] == pytest.approx(enh.loc[1, "enhancement"])
 
 
+# what a peak is (peak_rule): a series whose answer is read off by hand. Frames 0-11, one quiet
+# period. Local maxima (S(k) > S(k - 1), S(k) >= S(k + 1), k = 1..10): 1 (3), 3 (5, the first
+# frame of the 5-5 plateau), 6 (4), 8 (8), 10 (5). Quiet mean 39 / 12 = 3.25, std
+# sqrt(52.25 / 12) = 2.087: mean + 1 sd = 5.34 leaves frame 8 only, mean + 0.5 sd = 4.29 frames
+# 3, 8, 10. Top decile: m = ceil(1.2) = 2, the 2nd largest S is 5, so every frame with S >= 5:
+# 3, 4, 8, 10 (the ties with the 2nd all count). N^f: 1 except 4 at frames 3 and 10 and 7 at 8,
+# quiet mean 24 / 12 = 2.
+PEAK_S = np.array([1, 3, 2, 5, 5, 1, 4, 2, 8, 1, 5, 2], dtype=float)
+PEAK_NF = np.array([1, 1, 1, 4, 1, 1, 1, 1, 7, 1, 4, 1], dtype=float)
+
+
+def test_each_peak_rule_finds_the_peaks_counted_by_hand():
+    quiet = np.ones(PEAK_S.size, bool)
+    assert st.cluster_peaks(PEAK_S, quiet, peak_rule="local").tolist() == [1, 3, 6, 8, 10]
+    assert st.cluster_peaks(PEAK_S, quiet, peak_rule="sigma").tolist() == [8]
+    assert st.cluster_peaks(PEAK_S, quiet).tolist() == [8]                 # the default
+    assert st.cluster_peaks(PEAK_S, quiet, threshold_sigma=0.5).tolist() == [3, 8, 10]
+    assert st.cluster_peaks(PEAK_S, quiet, peak_rule="decile").tolist() == [3, 4, 8, 10]
+    # frame 5 avalanching: frame 6 loses its left neighbour in the period (no longer a local
+    # maximum); the decile is over the 11 quiet frames (m = ceil(1.1) = 2: still S >= 5)
+    quiet[5] = False
+    assert st.cluster_peaks(PEAK_S, quiet, peak_rule="local").tolist() == [1, 3, 8, 10]
+    assert st.cluster_peaks(PEAK_S, quiet, peak_rule="decile").tolist() == [3, 4, 8, 10]
+    # distinct values: the top decile is exactly ceil(n / 10) frames (here 2 of 11, 3 of 21)
+    for n in (11, 21):
+        s = np.arange(n, dtype=float)[::-1]
+        assert st.cluster_peaks(s, np.ones(n, bool), peak_rule="decile").tolist() == \
+            list(range(int(np.ceil(n / 10))))
+
+
+def test_each_peak_rule_gives_the_enhancement_counted_by_hand():
+    quiet = np.ones(PEAK_S.size, bool)
+
+    def enh0(rule):
+        e = st.failure_enhancement(PEAK_S, PEAK_NF, quiet, taus=[0], peak_rule=rule)
+        return e["enhancement"].iloc[0], e["n_peaks"].iloc[0]
+
+    assert enh0("local") == (pytest.approx((1 + 4 + 1 + 7 + 4) / 5 / 2 - 1), 5)   # +70%
+    assert enh0("sigma") == (pytest.approx(7 / 2 - 1), 1)                          # +250%
+    assert enh0("decile") == (pytest.approx((4 + 1 + 7 + 4) / 4 / 2 - 1), 4)       # +100%
+    # "c0": the +40% read as C(0), the Pearson correlation of S and N^f over the 12 frames
+    assert enh0("c0") == (pytest.approx(np.corrcoef(PEAK_S, PEAK_NF)[0, 1]), 12)
+    c = st.correlation_function(PEAK_S, PEAK_NF, quiet, taus=[0, 1, 2]).set_index("tau")
+    e = st.failure_enhancement(PEAK_S, PEAK_NF, quiet, taus=[0, 1, 2],
+                               peak_rule="c0").set_index("tau")
+    assert e["enhancement"].tolist() == c["C"].tolist()
+    assert e["n_peaks"].tolist() == c["n_pairs"].tolist() == [12, 11, 10]
+
+
+def test_peak_rules_pool_runs_with_a_threshold_per_run():
+    """Two runs: the series above and the same series doubled (S and N^f x 2). The peaks are
+    the same frames in both (mean, sd and decile scale with S); the pooled rate after them is
+    the N^f sum over both runs' peaks over the pooled quiet mean (24 + 48) / 24 = 3."""
+    frames = pd.concat([pd.DataFrame({"run": r, "frame": np.arange(PEAK_S.size),
+                                      "largest_cluster": f * PEAK_S, "n_lost": f * PEAK_NF,
+                                      "avalanching": False, "period": 0})
+                        for r, f in ((1, 1.0), (2, 2.0))])
+    for rule, peak_nf in (("local", 17), ("sigma", 7), ("decile", 16)):
+        e = st.failure_enhancement_ensemble(frames, taus=[0], peak_rule=rule)
+        n = {"local": 5, "sigma": 1, "decile": 4}[rule]
+        assert e["enhancement"].iloc[0] == pytest.approx(3 * peak_nf / (2 * n) / 3 - 1), rule
+        assert e["n_peaks"].iloc[0] == 2 * n
+    e = st.failure_enhancement_ensemble(frames, taus=[0, 1], peak_rule="c0")
+    c = st.correlation_function_ensemble(frames, taus=[0, 1])
+    assert e["enhancement"].tolist() == c["C"].tolist() and e["n_peaks"].tolist() == [24, 22]
+
+
+def test_the_sigma_rule_is_the_peak_definition_it_always_was():
+    """The default "sigma" is the original definition (a local maximum within a quiet period
+    above mean + threshold_sigma sd of the quiet frames), written out here independently, on
+    random series with avalanches."""
+    rng = np.random.default_rng(11)
+    for _ in range(20):
+        n = 300
+        s = rng.poisson(4.0, n).astype(float)
+        nf = rng.poisson(3.0, n).astype(float)
+        quiet = rng.random(n) > 0.1
+        per = np.cumsum(np.r_[True, quiet[1:] != quiet[:-1]])
+        sq = s[quiet]
+        thr = sq.mean() + sq.std()
+        want = [k for k in range(1, n - 1)
+                if quiet[k - 1] and quiet[k] and quiet[k + 1] and per[k - 1] == per[k] == per[k + 1]
+                and s[k] > s[k - 1] and s[k] >= s[k + 1] and s[k] > thr]
+        assert st.cluster_peaks(s, quiet, peak_rule="sigma").tolist() == want
+        a = st.failure_enhancement(s, nf, quiet, taus=[0, 1])
+        b = st.failure_enhancement(s, nf, quiet, taus=[0, 1], peak_rule="sigma")
+        pd.testing.assert_frame_equal(a, b)
+        base = nf[quiet].mean()
+        k = np.array(want)
+        ok = quiet[k + 1] & (per[k + 1] == per[k])
+        assert a["enhancement"].iloc[1] == pytest.approx(nf[k + 1][ok].mean() / base - 1)
+
+
+@pytest.mark.parametrize("call", [
+    lambda r: st.cluster_peaks(PEAK_S, np.ones(12, bool), peak_rule=r),
+    lambda r: st.failure_enhancement(PEAK_S, PEAK_NF, np.ones(12, bool), peak_rule=r),
+    lambda r: st.failure_enhancement_ensemble(pd.DataFrame({"run": 0, "frame": np.arange(12),
+                                                            "largest_cluster": PEAK_S,
+                                                            "n_lost": PEAK_NF,
+                                                            "avalanching": False, "period": 0}),
+                                              peak_rule=r)])
+def test_an_unknown_peak_rule_is_a_one_line_error(call):
+    with pytest.raises(ValueError, match=r"^peak_rule must be one of 'local', 'sigma', 'decile', "
+                                         r"'c0', not 'top'$"):
+        call("top")
+    with pytest.raises(ValueError, match="one of"):
+        call(None)
+
+
+def test_c0_defines_no_peaks():
+    with pytest.raises(ValueError, match="'c0' defines no peaks"):
+        st.cluster_peaks(PEAK_S, np.ones(12, bool), peak_rule="c0")
+
+
 # ---------------------------------------------------------------------------------------------
 # delta z versus size, windows
 

@@ -332,6 +332,33 @@ def test_fig3_numbers_on_a_synthetic_run():
     _show(fig3, d, numbers)
 
 
+def test_fig3_peak_rule_sets_what_a_peak_is_and_is_named_only_off_its_default():
+    from tiltpile.figures import style
+
+    ens = _fig3_ensemble()
+    default, _ = fig3.compute(ens, snapshot=False)
+    default = style.jsonable(default)                  # NaN as None, so that == compares
+    assert "peak_rule" not in default                  # the default's numbers stay as they were
+    assert style.jsonable(fig3.compute(ens, snapshot=False, peak_rule="sigma")[0]) == default
+    # the four peaks (S = 20, else 5) are the only local maxima: "local" is "sigma" here
+    local, _ = fig3.compute(ens, snapshot=False, peak_rule="local")
+    assert local["peak_rule"] == "local"
+    assert local["enhancement_tau0"] == default["enhancement_tau0"] and local["n_peaks"] == 4
+    # top decile of 41 quiet frames: m = ceil(4.1) = 5, and the 5th largest S is 5, so every
+    # frame ties into it: the rate after the "peaks" is the quiet mean (40 frames with N^f)
+    dec, _ = fig3.compute(ens, snapshot=False, peak_rule="decile")
+    assert dec["enhancement_tau0"] == pytest.approx(0.0, abs=1e-12) and dec["n_peaks"] == 40
+    # "c0": the enhancement is C(0) itself, its frame pairs the count
+    c0 = style.jsonable(fig3.compute(ens, snapshot=False, peak_rule="c0")[0])
+    assert c0["peak_rule"] == "c0"
+    assert c0["enhancement_tau0"] == c0["C_tau0"] == default["C_tau0"] and c0["n_peaks"] == 40
+    # the other numbers do not move
+    assert {k: v for k, v in c0.items() if "enhancement" not in k and k not in ("n_peaks", "peak_rule")} \
+        == {k: v for k, v in default.items() if "enhancement" not in k and k != "n_peaks"}
+    with pytest.raises(ValueError, match="^peak_rule must be one of 'local', 'sigma', 'decile', 'c0'"):
+        fig3.compute(ens, snapshot=False, peak_rule="max")
+
+
 def test_fig3_no_failure_no_clusters_gives_nan():
     ens = _fig3_ensemble()
     f = ens.frames

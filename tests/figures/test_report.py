@@ -196,6 +196,71 @@ def test_crossing_uses_the_interval_over_runs(tmp_path):
     assert v["crossing"] == "agrees"
 
 
+def test_crossing_is_judged_on_both_halves(tmp_path):
+    """Quiet frames above the line and just above it before the onsets, but no avalanching frame
+    below it: the quiet half alone (the judge before issue 51) agreed; the pile never crosses
+    after the onset, so the claim disagrees, and the note says which half failed."""
+    quiet_above = {"quiet_below_run_mean": 0.002, "quiet_below_run_mean_ci_low": 0.001,
+                   "quiet_below_run_mean_ci_high": 0.004, "dz_gen_pre_onset": 0.4}
+    never_below = dict(quiet_above, avalanche_below_fraction=0.0)
+    lo, pre = never_below["quiet_below_run_mean_ci_low"], never_below["dz_gen_pre_onset"]
+    assert lo <= 0.01 and pre > 0                         # what the quiet-only judge tested
+    v, text = _verdicts(tmp_path, [_doc("fig1_isostaticity", never_below)])
+    assert v["crossing"] == "disagrees"
+    note = _note(text, "crossing")
+    assert "only 0% of our avalanching frames are below the marginal line" in note
+    assert "frame-resolution" not in note                 # the quiet half held
+    # at least half of the avalanching frames below: agrees; just under half: disagrees
+    v, _ = _verdicts(tmp_path, [_doc("fig1_isostaticity", dict(quiet_above, avalanche_below_fraction=0.5))])
+    assert v["crossing"] == "agrees"
+    v, _ = _verdicts(tmp_path, [_doc("fig1_isostaticity", dict(quiet_above, avalanche_below_fraction=0.49))])
+    assert v["crossing"] == "disagrees"
+    # both halves fail: both reasons; avalanching frames not measured: only the quiet half can
+    # decide (it fails here, so disagrees; were it to hold, inconclusive)
+    both = dict(never_below, quiet_below_run_mean_ci_low=0.03)
+    v, text = _verdicts(tmp_path, [_doc("fig1_isostaticity", both)])
+    assert v["crossing"] == "disagrees"
+    assert "frame-resolution" in _note(text, "crossing") and "only 0%" in _note(text, "crossing")
+    v, _ = _verdicts(tmp_path, [_doc("fig1_isostaticity", dict(both, avalanche_below_fraction=None))])
+    assert v["crossing"] == "disagrees"
+    v, _ = _verdicts(tmp_path, [_doc("fig1_isostaticity", quiet_above)])
+    assert v["crossing"] == "inconclusive"
+    # the rule the report prints says what the judge tests
+    rule = report.RULES["crossing"].test
+    assert "at least half of the avalanching frames" in rule and "1%" in rule
+
+
+def _fig3(**kw):
+    return _doc("fig3_clusters_failure", dict({"C_argmax_tau": 0, "C_tau0": 0.75,
+                                               "enhancement_tau0": 2.23, "n_peaks": 1050}, **kw))
+
+
+def test_enhancement_names_the_peak_rule_its_numbers_were_computed_with(tmp_path):
+    """fig3 writes peak_rule only off its default ("sigma"): without it the note describes the
+    default peak; with it, that rule's; with "c0" the number is C(0) and is judged as one."""
+    from tiltpile.analysis import stats
+    from tiltpile.report import paper
+
+    assert set(paper.PEAKS) | {"c0"} == set(stats.PEAK_RULES)
+    assert paper.PEAK_DEFAULT == stats.DEFAULT_PEAK_RULE
+    v, text = _verdicts(tmp_path, [_fig3()])
+    assert v["enhancement"] == "disagrees"
+    assert "+223% right after 1050 peaks" in text
+    assert "(ours: a local maximum more than one standard deviation above" in _note(text, "enhancement")
+    v, text = _verdicts(tmp_path, [_fig3(peak_rule="local", enhancement_tau0=-0.07, n_peaks=5397)])
+    assert v["enhancement"] == "disagrees"
+    assert "(ours: any local maximum of S_m within a quiet period" in _note(text, "enhancement")
+    assert "-7% right after 5397 peaks of the largest cluster (peak: any local maximum" in text
+    v, text = _verdicts(tmp_path, [_fig3(peak_rule="decile", enhancement_tau0=0.41, n_peaks=200)])
+    assert v["enhancement"] == "agrees" and "top decile" in _row(text, "Failure rate right after")
+    v, text = _verdicts(tmp_path, [_fig3(peak_rule="c0", enhancement_tau0=0.75, n_peaks=18470)])
+    assert v["enhancement"] == "disagrees"
+    assert "C(0) = 0.75 read as the +40% (18470 pairs of quiet frames)" in text
+    assert "read as C(0)" in _note(text, "enhancement")
+    v, _ = _verdicts(tmp_path, [_fig3(peak_rule="c0", enhancement_tau0=0.4, n_peaks=18470)])
+    assert v["enhancement"] == "agrees"
+
+
 def test_scales_table_says_not_yet_run(tmp_path):
     _write(tmp_path, [_fig2()])
     text = report.write_report(tmp_path, tmp_path / "R.md").read_text()

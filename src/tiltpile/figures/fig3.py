@@ -123,7 +123,8 @@ def _at(df: pd.DataFrame, col: str, tau: int) -> float:
 def compute(ens, sample_seed: int | None = None, snapshot_offset_deg: float = SNAPSHOT_OFFSET_DEG,
             failure_column: str = "n_lost", taus=range(-10, 11), enhancement_taus=range(0, 6),
             fraction_bin_width: float = 0.05, min_failing: int = 5,
-            orientation_min_size: int = 5, snapshot: bool = True) -> tuple[dict, dict]:
+            orientation_min_size: int = 5, snapshot: bool = True,
+            peak_rule: str = _st.DEFAULT_PEAK_RULE) -> tuple[dict, dict]:
     """Numbers and plot data of Fig. 3 (module docstring).
 
     sample_seed: run of the snapshot (None: the first run with an onset); snapshot_offset_deg:
@@ -133,7 +134,13 @@ def compute(ens, sample_seed: int | None = None, snapshot_offset_deg: float = SN
     (:func:`tiltpile.analysis.failure_enhancement_ensemble`); fraction_bin_width, min_failing:
     binning of the spatial correlation (:func:`failure_in_clusters`); orientation_min_size:
     smallest cluster whose orientation enters the mean; snapshot: read the snapshot from the run
-    file (False for tables without run files).
+    file (False for tables without run files); peak_rule: what counts as a peak of S_m in the
+    enhancement (:data:`tiltpile.analysis.stats.PEAK_RULES`, :func:`~tiltpile.analysis.cluster_peaks`):
+    "sigma" (default) a quiet local maximum more than one standard deviation above its run's
+    quiet mean, "local" any quiet local maximum, "decile" any quiet frame in the top decile of
+    its run's quiet S_m, "c0" no peaks: the paper's +40% read as C(0), so that the enhancement
+    numbers are C(tau) at tau >= 0 (enhancement_tau0 = C_tau0) and n_peaks the frame pairs of
+    C(0).
 
     numbers:
       snapshot                    seed, frame, theta_deg, theta_to_onset of the top panel, and
@@ -149,12 +156,15 @@ def compute(ens, sample_seed: int | None = None, snapshot_offset_deg: float = SN
                                   mean, minus 1 (paper: ~ +40%)
       enhancement_max, enhancement_argmax_tau   its maximum over enhancement_taus and where
       n_peaks                     cluster-size peaks entering enhancement_tau0
+      peak_rule                   the peak_rule, written only when it is not the default
+                                  ("sigma"), so that the default's numbers stay as they were
       orientation_mean_deg, orientation_median_deg, n_clusters_orientation
                                   angle of the long axis of quiet-frame clusters of size >=
                                   orientation_min_size to gravity (0 = along g; isotropic
                                   clusters would give 45 on average; paper ~60)
       orientation_mean_avalanche_deg, n_clusters_orientation_avalanche   same, avalanching frames
     """
+    _st.check_peak_rule(peak_rule)
     # the library's C(tau) and enhancement skip the last frame's forward counts themselves
     fr = ens.frames.sort_values(["run", "frame"], kind="stable")
     quiet_all = ~fr["avalanching"].to_numpy(bool)
@@ -193,7 +203,7 @@ def compute(ens, sample_seed: int | None = None, snapshot_offset_deg: float = SN
     numbers.update(failure_column=failure_column, C_tau0=_at(c, "C", 0), C_max=cmax,
                    C_argmax_tau=tmax, C_tau0_alt=_at(c_alt, "C", 0))
     enh = _st.failure_enhancement_ensemble(fr, a="largest_cluster", b=failure_column,
-                                           taus=enhancement_taus)
+                                           taus=enhancement_taus, peak_rule=peak_rule)
     e = enh["enhancement"].to_numpy(float)
     if np.isfinite(e).any():
         i = int(np.nanargmax(e))
@@ -204,6 +214,8 @@ def compute(ens, sample_seed: int | None = None, snapshot_offset_deg: float = SN
     numbers.update(enhancement_tau0=_at(enh, "enhancement", 0), enhancement_max=e_max,
                    enhancement_argmax_tau=e_tau,
                    n_peaks=int(n_peaks) if np.isfinite(n_peaks) else 0)
+    if peak_rule != _st.DEFAULT_PEAK_RULE:
+        numbers["peak_rule"] = peak_rule
     dtheta = fr.groupby("run")["theta_deg"].diff().to_numpy(float)
     d.update(C=c, C_alt=c_alt, failure_column=failure_column, alt_column=alt,
              dtheta_frame=float(np.nanmedian(dtheta)) if np.isfinite(dtheta).any() else np.nan)

@@ -9,7 +9,8 @@
   uncertainties; :func:`sample_power_law_cutoff` draws from it.
 * :func:`cluster_size_windows` -- P(s) fits, xi and <S_max> in windows of theta - theta_m.
 * :func:`correlation_function` -- C(tau) between S_m(k) and N^f(k + tau) over quiet frames
-  (paper Eq. 2); :func:`failure_enhancement` after cluster-size peaks.
+  (paper Eq. 2); :func:`failure_enhancement` after cluster-size peaks (what a peak is:
+  :data:`PEAK_RULES`, :func:`cluster_peaks`).
 * :func:`dz_by_size`, :func:`dz_distribution` -- delta z of clusters versus their size (Fig. 5).
 * :func:`power_law_departure`, :func:`ke_threshold` -- where the kinetic-energy density leaves the
   power law of the quiet frames (Fig. 2a).
@@ -47,7 +48,10 @@ from .sizes import (
     window_edges,
 )
 from .correlation import (
+    DEFAULT_PEAK_RULE,
     FORWARD_COLUMNS,
+    PEAK_RULES,
+    check_peak_rule,
     cluster_peaks,
     correlation_function,
     correlation_function_ensemble,
@@ -73,15 +77,18 @@ from .bootstrap import (
 )
 
 __all__ = [
+    "DEFAULT_PEAK_RULE",
     "FORWARD_COLUMNS",
     "InsufficientDataError",
     "MAX_DELTA_ERR",
+    "PEAK_RULES",
     "PoorFitWarning",
     "PowerLawCutoffFit",
     "bimodality",
     "bootstrap_ci",
     "bootstrap_runs_ci",
     "cell_density_2d",
+    "check_peak_rule",
     "cluster_peaks",
     "cluster_size_windows",
     "correlation_function",

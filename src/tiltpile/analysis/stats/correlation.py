@@ -93,39 +93,87 @@ def _column(frames: pd.DataFrame, name: str) -> np.ndarray:
     return x
 
 
-def cluster_peaks(s_max, quiet, period=None, threshold_sigma: float = 1.0) -> np.ndarray:
-    """Frames where the largest cluster size peaks during a quiet period.
+# what counts as a peak of the largest cluster in the failure enhancement (the paper's "just after
+# the cluster size peaks, the failure rate is enhanced by about 40%" defines none): see
+# cluster_peaks; "c0" reads the +40% as C(0) of Eq. 2 instead of a rate after peaks
+PEAK_RULES = ("local", "sigma", "decile", "c0")
+DEFAULT_PEAK_RULE = "sigma"
+# the share of a run's quiet frames the "decile" rule takes as peaks
+TOP_SHARE = 0.1
 
-    A peak is a quiet frame k whose neighbours k - 1 and k + 1 are in the same quiet period, with
-    S(k) > S(k - 1), S(k) >= S(k + 1), and S(k) > mean + threshold_sigma * std of S over the quiet
-    frames. Returns the frame indices (int64).
+
+def check_peak_rule(peak_rule) -> str:
+    """``peak_rule`` if it is one of :data:`PEAK_RULES`, else a one-line ValueError."""
+    if not isinstance(peak_rule, str) or peak_rule not in PEAK_RULES:
+        raise ValueError(f"peak_rule must be one of {', '.join(map(repr, PEAK_RULES))}, "
+                         f"not {peak_rule!r}")
+    return peak_rule
+
+
+def cluster_peaks(s_max, quiet, period=None, threshold_sigma: float = 1.0,
+                  peak_rule: str = DEFAULT_PEAK_RULE) -> np.ndarray:
+    """Frames where the largest cluster size peaks during a quiet period, by ``peak_rule``:
+
+    "local"   a quiet frame k whose neighbours k - 1 and k + 1 are in the same quiet period, with
+              S(k) > S(k - 1) and S(k) >= S(k + 1) (a plateau counts once, at its first frame);
+    "sigma"   (default) such a local maximum with S(k) > mean + threshold_sigma * std of S over
+              the quiet frames;
+    "decile"  every quiet frame in the top decile of the quiet frames' S, local maximum or not:
+              S(k) at least the m-th largest quiet S, m = ceil(n / 10) of n quiet frames, i.e.
+              fewer than n / 10 quiet frames have a larger S (frames tied with the m-th all count,
+              so with ties more than a tenth may).
+
+    Quiet frames with a non-finite S are never peaks and do not enter the mean, std or decile.
+    "c0" defines no peaks (:func:`failure_enhancement`): ValueError. Returns the frame indices
+    (int64), ascending.
     """
+    if check_peak_rule(peak_rule) == "c0":
+        raise ValueError("peak_rule 'c0' defines no peaks: it reads the enhancement as C(0)")
     s = np.asarray(s_max, dtype=float)
     quiet = np.asarray(quiet, dtype=bool)
     per = _period_labels(quiet, period)
+    sq = s[quiet & np.isfinite(s)]
+    if peak_rule == "decile":
+        if not sq.size:
+            return np.zeros(0, dtype=np.int64)
+        m = int(np.ceil(TOP_SHARE * sq.size))
+        thr = np.sort(sq)[::-1][m - 1]
+        return np.flatnonzero(quiet & np.isfinite(s) & (s >= thr)).astype(np.int64)
     if s.size < 3:
         return np.zeros(0, dtype=np.int64)
     k = np.arange(1, s.size - 1)
     inner = quiet[k] & quiet[k - 1] & quiet[k + 1] & (per[k] == per[k - 1]) & (per[k] == per[k + 1])
-    sq = s[quiet & np.isfinite(s)]
-    thr = sq.mean() + threshold_sigma * sq.std() if sq.size else np.inf
-    peak = inner & (s[k] > s[k - 1]) & (s[k] >= s[k + 1]) & (s[k] > thr)
+    peak = inner & (s[k] > s[k - 1]) & (s[k] >= s[k + 1])
+    if peak_rule == "sigma":
+        thr = sq.mean() + threshold_sigma * sq.std() if sq.size else np.inf
+        peak &= s[k] > thr
     return k[peak]
 
 
+def _c_as_enhancement(c: pd.DataFrame) -> pd.DataFrame:
+    """A C(tau) table as an enhancement table: enhancement = C, n_peaks = the frame pairs."""
+    return pd.DataFrame({"tau": c["tau"].astype(int), "enhancement": c["C"].astype(float),
+                         "n_peaks": c["n_pairs"].astype(int)})
+
+
 def failure_enhancement(s_max, n_fail, quiet, taus=range(0, 6), period=None,
-                        threshold_sigma: float = 1.0) -> pd.DataFrame:
+                        threshold_sigma: float = 1.0,
+                        peak_rule: str = DEFAULT_PEAK_RULE) -> pd.DataFrame:
     """Failure rate after peaks of the largest cluster, relative to the quiet-period mean.
 
     enhancement(tau) = <N^f(k + tau)>_{k in peaks, k + tau in the same quiet period}
                        / <N^f>_{quiet frames} - 1
     (the paper: "just after the cluster size peaks, the failure rate is enhanced by about 40%").
-    Peaks from :func:`cluster_peaks`. Returns DataFrame tau, enhancement, n_peaks.
+    Peaks from :func:`cluster_peaks` by ``peak_rule`` ("local", "sigma", "decile"). With
+    peak_rule "c0" the enhancement is C(tau) of :func:`correlation_function` (the +40% read as
+    C(0) ~ 0.4) and n_peaks its frame pairs. Returns DataFrame tau, enhancement, n_peaks.
     """
     nf = np.asarray(n_fail, dtype=float)
     quiet = np.asarray(quiet, dtype=bool)
     per = _period_labels(quiet, period)
-    peaks = cluster_peaks(s_max, quiet, per, threshold_sigma)
+    if check_peak_rule(peak_rule) == "c0":
+        return _c_as_enhancement(correlation_function(s_max, nf, quiet, taus, period=per))
+    peaks = cluster_peaks(s_max, quiet, per, threshold_sigma, peak_rule)
     base = np.nanmean(nf[quiet]) if quiet.any() else np.nan
     rows = []
     for tau in taus:
@@ -141,15 +189,22 @@ def failure_enhancement(s_max, n_fail, quiet, taus=range(0, 6), period=None,
 
 def failure_enhancement_ensemble(frames: pd.DataFrame, a: str = "largest_cluster",
                                  b: str = "n_lost", taus=range(0, 6),
-                                 threshold_sigma: float = 1.0) -> pd.DataFrame:
-    """:func:`failure_enhancement` pooled over runs (peak threshold per run)."""
+                                 threshold_sigma: float = 1.0,
+                                 peak_rule: str = DEFAULT_PEAK_RULE) -> pd.DataFrame:
+    """:func:`failure_enhancement` pooled over runs (peak threshold or top decile per run).
+
+    With peak_rule "c0": C(tau) of :func:`correlation_function_ensemble` as the enhancement, its
+    frame pairs as n_peaks.
+    """
+    if check_peak_rule(peak_rule) == "c0":
+        return _c_as_enhancement(correlation_function_ensemble(frames, a, b, taus))
     parts = []
     for _, g in frames.sort_values(["run", "frame"]).groupby("run", sort=False):
         quiet = ~g["avalanching"].to_numpy(bool)
         per = g["period"].to_numpy()
         s = _column(g, a)
         nf = _column(g, b)
-        peaks = cluster_peaks(s, quiet, per, threshold_sigma)
+        peaks = cluster_peaks(s, quiet, per, threshold_sigma, peak_rule)
         base_sum, base_n = np.nansum(nf[quiet]), int(np.isfinite(nf[quiet]).sum())
         for tau in taus:
             k = peaks + int(tau)
