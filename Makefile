@@ -58,7 +58,11 @@ test-fast: setup
 # `make figures PRESET=paper RUNS=16` rebuilds figures of the first 16 runs while later runs'
 # records are committed beside them. The notebooks then read EXECUTED/records-M/, links to those.
 # `make records [PRESET=P] [DATA=/path/to/runs] [WORKERS=W]` writes RECORDS from the finished run
-# files of DATA (records up to date are skipped), running nothing else.
+# files of DATA (records up to date are skipped), running nothing else. PARAMS='{"name": value,
+# ...}' (a JSON object of analysis parameters, `tiltpile record --params`) writes them with the
+# tables at those parameters, into RECORDS=dir, which must then be given: one parameter set per
+# directory, e.g. `make records PRESET=paper DATA=/work/runs/paper
+# PARAMS='{"contact_rule": "gap:0.00218"}' RECORDS=figures/paper/records-gap`.
 PRESET ?= default
 VARIANT ?=
 SET ?=
@@ -198,7 +202,9 @@ endif
 
 .PHONY: records
 records: | $(STAMP)
-	$(ANALYSIS_ENV) $(PY) -m tiltpile record $(DATA) --out $(RECORDS) $(if $(WORKERS),--workers $(WORKERS))
+	$(if $(strip $(PARAMS)),$(if $(filter file,$(origin RECORDS)),$(error make records PARAMS=...: give RECORDS=dir, a directory of its own for the records at those parameters (not $(RECORDS)))))
+	$(ANALYSIS_ENV) $(PY) -m tiltpile record $(DATA) --out $(RECORDS) $(if $(WORKERS),--workers $(WORKERS)) \
+	  $(if $(strip $(PARAMS)),--params '$(PARAMS)')
 
 # `make ensemble [PRESET=paper] [DATA=/path/outside/the/checkout] [WORKERS=W]`: only the ensemble,
 # for a computation spread over many sessions (README, "The paper's scale, over many sessions").

@@ -6,9 +6,10 @@ start from. The tables are those of :func:`tiltpile.analysis.load_observables` (
 :mod:`tiltpile.analysis.observables`); run files are read through :mod:`tiltpile.store` only.
 
 A directory without run files may hold their records instead (``run_SSSS.npz``,
-:mod:`tiltpile.record`, written by ``tiltpile record``): the same tables at the default analysis
-parameters (without the cluster columns no figure reads), the same configuration, seeds and
-description, and the frames of the pile pictures.
+:mod:`tiltpile.record`, written by ``tiltpile record``): the same tables (without the cluster
+columns no figure reads) at the analysis parameters they were written at (the defaults, or those
+of ``tiltpile record --params``: one parameter set per directory, :func:`record_params`), the
+same configuration, seeds and description, and the frames of the pile pictures.
 
 A reader (a figure, a study) declares the columns it reads (:class:`Reads`) and gets tables of
 those columns only, from run files and records alike, so that a column it reads undeclared fails
@@ -174,6 +175,29 @@ def _same(a, b) -> bool:
     return json.dumps(a, sort_keys=True) == json.dumps(b, sort_keys=True)
 
 
+def record_params(meta: dict) -> dict:
+    """The table parameters (:func:`tiltpile.analysis.observables.table_params`) a record's tables
+    were computed at, from its ``meta``: its ``analysis_params``, a parameter the record predates
+    at its default (the code that reads it is in the digests of the columns it reaches,
+    :func:`record_columns`; a parameter no longer in the tables is left out)."""
+    given = meta.get("analysis_params") or {}
+    return {k: given.get(k, v) for k, v in table_params().items()}
+
+
+def params_differ(a: dict, b: dict) -> list[str]:
+    """The keys of ``a`` whose value ``b`` gives otherwise (compared as JSON writes them)."""
+    return sorted(k for k in a if not _same(a[k], b.get(k)))
+
+
+def describe_params(params: dict) -> str:
+    """One phrase for a set of table parameters: "the default analysis parameters", or
+    "analysis parameters k=v, ..." naming those that differ from their defaults."""
+    other = [k for k in params if k in DEFAULT_PARAMS and not _same(params[k], DEFAULT_PARAMS[k])]
+    if not other:
+        return "the default analysis parameters"
+    return "analysis parameters " + ", ".join(f"{k}={params[k]!r}" for k in other)
+
+
 def load_records(data_dir, preset: str | None = None, reads: Reads | None = None,
                  **analysis_params) -> Ensemble:
     """The ensemble of the records ``run_*.npz`` in ``data_dir`` (:mod:`tiltpile.record`): the
@@ -187,12 +211,18 @@ def load_records(data_dir, preset: str | None = None, reads: Reads | None = None
     legacy whole-table digest through :mod:`tiltpile.analysis.legacy_codes`): a column a record
     lacks, leaves out or holds from other code is refused (``tiltpile.record.RecordError``, one
     line naming the column and saying the run files are needed); so are records of an unknown
-    whole-table digest, ``analysis_params`` that change the tables (records hold them at the
-    default parameters: cutoff, lost_gap, ...), damaged records (every member's checksum is
-    checked) and records of other format versions. Records of different configurations are
-    refused (ValueError), a directory without records is FileNotFoundError.
+    whole-table digest, damaged records (every member's checksum is checked) and records of other
+    format versions.
+
+    ``analysis_params``: the tables' parameters asked for (cutoff, lost_gap, contact_rule, ...;
+    those of the per-run table, slide_ke and slide_sustain_deg, do not enter the records). The
+    records serve them when they were written at them (:func:`record_params`: the defaults, or
+    ``tiltpile record --params``); other parameters are refused (RecordError, one line naming the
+    parameters the records hold and those asked for), and so is a directory mixing records of
+    several parameter sets. Records of different configurations are refused (ValueError), a
+    directory without records is FileNotFoundError.
     """
-    from tiltpile.record import RecordError, read_record, record_files
+    from tiltpile.record import RecordError, read_meta, read_record, record_files
 
     data_dir = Path(data_dir)
     paths = record_files(data_dir)
@@ -201,17 +231,22 @@ def load_records(data_dir, preset: str | None = None, reads: Reads | None = None
                                 "`tiltpile record`")
     wanted = table_params(**analysis_params)
     who = f"{reads.reader} ({data_dir})" if reads is not None else str(data_dir)
+    # the parameter set first, from the metas alone (cheap): one per directory, the one asked for
+    held = [record_params(read_meta(path)) for path in paths]
+    odd = next((i for i, h in enumerate(held) if params_differ(h, held[0])), None)
+    if odd is not None:
+        raise RecordError(f"{data_dir} mixes records of several analysis parameter sets "
+                          f"({paths[0].name}: {describe_params(held[0])}; {paths[odd].name}: "
+                          f"{describe_params(held[odd])}); one records directory holds one set")
+    diff = params_differ(wanted, held[0])
+    if diff:
+        raise RecordError(f"{paths[0]}: records hold the tables at {describe_params(held[0])}; "
+                          f"{', '.join(f'{k}={wanted[k]!r}' for k in diff)} needs the run files "
+                          "(or records written at those parameters: tiltpile record --params)")
     hashes, seeds, cfg, costs, fr, cl, records = set(), [], None, [], [], [], {}
     for path in paths:
         rec = read_record(path)    # every member, so that every checksum is checked
         m = rec.meta
-        given = m.get("analysis_params") or {}
-        # a parameter the record predates must be at its default (the code that reads it is in
-        # the digests of the columns it reaches, record_columns)
-        diff = sorted(k for k in wanted if not _same(wanted[k], given.get(k, DEFAULT_PARAMS[k])))
-        if diff:
-            raise RecordError(f"{path}: records hold the tables at the default analysis parameters; "
-                              f"{', '.join(f'{k}={wanted[k]!r}' for k in diff)} needs the run files")
         need = record_columns(path, m, reads, who)
         tables = {"frames": _select(rec.frames, need["frames"]),
                   "clusters": _select(rec.clusters, need["clusters"])}

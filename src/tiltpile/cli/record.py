@@ -21,6 +21,10 @@ def add_parser(sub) -> None:
                    help="records directory: RECORDS/run_SSSS.npz, one per run file")
     p.add_argument("--workers", type=int, default=None,
                    help="processes for observables not cached yet (default: one per core)")
+    p.add_argument("--params", metavar="JSON", default=None,
+                   help="the tables at these analysis parameters, a JSON object such as "
+                        "'{\"contact_rule\": \"gap:0.005\"}' (default: the defaults); such records "
+                        "go in a directory of their own, one parameter set per directory")
     p.add_argument("--force", action="store_true", help="rewrite the records that are up to date too")
     p.add_argument("--quiet", action="store_true", help="no progress bar")
     p.set_defaults(func=run)
@@ -32,15 +36,17 @@ def run(args) -> int:
     ``RECORD_BUDGET_BYTES``. Refused before anything is written: DIR without
     run files or mixing configurations (or another than its ``ensemble.json``), --out that is DIR
     itself or its observables cache or cannot be written, --out holding records of another
-    configuration."""
+    configuration or of other analysis parameters, --params that is not a JSON object of the
+    tables' analysis parameters with values in range."""
     from tiltpile.ensemble import read_manifest
-    from tiltpile.figures.records import foreign_records, write_records
+    from tiltpile.figures.records import foreign_records, refuse_foreign_params, write_records
     from tiltpile.paths import check_output
     from tiltpile.record import RecordError
     from tiltpile.store import common_config
 
     d = Path(args.dir)
     files = ensemble_files(d, args.workers, "finished run files (run_*.h5) to record")
+    params = parse_params(args.params)
     out = args.out
     if out.exists() and out.resolve() in (d.resolve(), (d / "observables").resolve()):
         raise ConfigError(f"--out {out} is the ensemble directory or its observables cache; "
@@ -54,8 +60,12 @@ def run(args) -> int:
                           f"hold runs of another configuration than {d} (hash {config_hash[:12]}); "
                           "one records directory holds one configuration")
     try:
+        refuse_foreign_params(out, params)
+    except RecordError as e:
+        raise ConfigError(str(e)) from None
+    try:
         table = write_records(d, out, workers=args.workers, force=args.force,
-                              progress=not args.quiet)
+                              progress=not args.quiet, params=params)
     except RecordError as e:
         print(f"tiltpile record: error: {' '.join(str(e).split())}", file=sys.stderr)
         return 1
@@ -69,3 +79,27 @@ def run(args) -> int:
     print(f"{len(table)} records in {out}: {written} written, {len(table) - written} up to date, "
           f"{table['bytes'].sum() / 1e6:.2f} MB")
     return 0
+
+
+def parse_params(text: str | None) -> dict:
+    """``--params``: the full table parameters of a JSON object of analysis parameters (None: the
+    defaults), checked (:func:`tiltpile.figures.records.check_params`); ConfigError (one line)
+    for text that is not a JSON object, a name that is not a parameter of the tables, or a value
+    out of its range."""
+    import json
+
+    from tiltpile.figures.records import check_params
+
+    if text is None:
+        return check_params(None)
+    try:
+        given = json.loads(text)
+    except json.JSONDecodeError as e:
+        raise ConfigError(f"--params {text!r}: not JSON ({e.msg} at character {e.pos})") from None
+    if not isinstance(given, dict):
+        raise ConfigError(f"--params {text!r}: give a JSON object of analysis parameters, "
+                          '{"name": value, ...}')
+    try:
+        return check_params(given)
+    except (TypeError, ValueError) as e:
+        raise ConfigError(f"--params: {' '.join(str(e).split())}") from None
