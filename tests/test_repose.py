@@ -13,6 +13,7 @@ import pytest
 from tiltpile import repose as rp
 from tiltpile.cli import main
 from tiltpile.cli.repose import DEFAULTS
+from tiltpile.runner import system_from_frame
 from tiltpile.sim import protocol
 from tiltpile.store import open_run
 
@@ -30,13 +31,37 @@ def test_rebuilt_pile_continues_its_run(smoke_run):
     velocities and the impulses (warm start) are those of the run."""
     with open_run(smoke_run[0]) as run:
         for k in (50, 240):  # quiet (5 deg), and in the slide, where steps stop at the cap
-            cfg, sysm = rp.rebuild_system(run, k)
+            cfg, sysm = system_from_frame(run, k)
             p = cfg.protocol
             sysm.advance(p.frame_every, float(run.theta_deg[k]), p.tilt_per_step_deg)
             moved = np.abs(run.position(k + 1) - run.position(k)).max()
             err = np.abs(sysm.pos - run.position(k + 1)).max()
             assert err < (1e-12 if k == 50 else 1e-3 * moved), (k, err, moved)  # cold: 1e-4, 0.1 moved
             assert sysm.kinetic_energy() == pytest.approx(run.ke[k + 1], rel=1e-6 if k == 50 else 1e-2)
+
+
+def test_the_rebuilt_frame_holds_the_stored_contacts(smoke_run):
+    """The rebuilt System lists the frame's stored contacts again, walls included (run-file ids
+    -1..-3 to the kernels' N + k and back), with their forces and states; from a path as from an
+    open run; a frame the run does not have is one line."""
+    path = smoke_run[0]
+    with open_run(path) as run:
+        k = run.n_frames - 1
+        want = run.contacts(k)
+        cfg, sysm = system_from_frame(run, -1)
+        assert sysm.scalars.step == int(run.step[k]) and sysm.scalars.phase == "tilt"
+        with pytest.raises(IndexError, match=f"frame {run.n_frames} out of range: the run has "
+                                             f"{run.n_frames} frames"):
+            system_from_frame(run, run.n_frames)
+    got = sysm.contacts()
+    assert (want[0][:, 1] < 0).any()  # the pile touches a wall
+    order = [np.lexsort((p[:, 1], p[:, 0])) for p in (want[0], got[0])]
+    np.testing.assert_array_equal(got[0][order[1]], want[0][order[0]])
+    np.testing.assert_allclose(got[1][order[1]], want[1][order[0]], rtol=1e-12, atol=0)
+    np.testing.assert_array_equal(got[2][order[1]], want[2][order[0]])
+    _, again = system_from_frame(path, k)
+    for name in ("pos", "rot", "vel", "ci", "cj", "c", "status"):
+        np.testing.assert_array_equal(getattr(again, name), getattr(sysm, name), err_msg=name)
 
 
 def test_the_smoke_pile_slides_then_stops_lower(measured, smoke_run, smoke_config):

@@ -9,10 +9,10 @@ establishes it. Otherwise a run that slid and came back to rest before it ended 
 on a second slide, at a much larger angle, and runs would turn back at different points of their
 slides; ``from_last`` takes the last frame regardless.
 
-1. Rebuild (``rebuild_system``): the simulator ``System`` of the run's configuration, with the
-   frame's grains, positions, rotations, velocities and angular velocities, its contact impulses
-   warm-started from the frame's stored contact forces (impulse = force dt; contacts not stored
-   carry no force and start at zero). The contact list is rebuilt at the first step and the
+1. Rebuild (``runner.system_from_frame``): the simulator ``System`` of the run's configuration,
+   with the frame's grains, positions, rotations, velocities and angular velocities, its contact
+   impulses warm-started from the frame's stored contact forces (impulse = force dt; contacts not
+   stored carry no force and start at zero). The contact list is rebuilt at the first step and the
    sweep-order generator restarts from the seed, so the continuation need not be bit-identical to
    the run going on; measured on the smoke run, ``frame_every`` steps from a stored frame land on
    the next one within 1e-14 d in quiet frames and 3e-7 d in the (capped) slide
@@ -57,10 +57,9 @@ import numpy as np
 
 from tiltpile import config as cfgmod
 from tiltpile.sim import protocol
-from tiltpile.sim.solver import IMPULSE, N_CONTACT_COLUMNS
-from tiltpile.sim.step import System
 from tiltpile.analysis.structure import surface_tilt_deg
-from tiltpile.store import Run, RunFileError, open_run
+from tiltpile.runner import system_from_frame
+from tiltpile.store import RunFileError, open_run
 
 KE_SLIDE = 1e-3       # [m g d] per mobile grain: a large slide (paper preset's protocol.end_ke)
 SLIDE_SPAN_DEG = 1.0  # [deg] of tilt the slide must last
@@ -146,51 +145,6 @@ def check_params(ke_slide: float, ke_stop: float, slide_span_deg: float, stop_sp
                          f"{min_deg!r}, max_deg = {max_deg!r}")
 
 
-def rebuild_system(run: Run, frame: int = -1) -> tuple[cfgmod.Config, System]:
-    """(config, System) of an open run file as it was at ``frame`` (default the last).
-
-    The System is the run configuration's (``protocol.make_system``: same parameters, the seed's
-    sweep-order generator) holding the file's grains (radius, fixed; mass = disk area) and the
-    frame's positions, rotations, velocities and angular velocities. Its contact list is the
-    frame's stored contacts with impulse = force * dt (the impulses of the frame's last step up
-    to rounding; every contact carrying a force is stored), and its reference positions are unset
-    so the first ``advance`` step rebuilds the candidate list and carries those impulses over
-    (``detect.carry_impulses``). Its ``protocol.RunState``: phase "repose", ``step`` the frame's
-    global step, ``sweeps`` and ``capped_steps`` 0, and the iteration-cap counters of the run's
-    health record (``steps_at_tol``, ``cap_hits``; 0 in a file without one).
-    """
-    if not -run.n_frames <= frame < run.n_frames:
-        raise IndexError(f"frame {frame} out of range: the run has {run.n_frames} frames")
-    k = frame % run.n_frames
-    cfg = cfgmod.from_dict(run.config)
-    sysm = protocol.make_system(cfg, run.seed)
-    state = sysm.state()  # parameters and generator from the configuration; arrays replaced below
-    radius = np.asarray(run.radius, dtype=np.float64)
-    fixed = np.asarray(run.fixed, dtype=np.bool_)
-    n = radius.size
-    vel = np.zeros((n + 3, 4))
-    vel[:n, :2] = run.velocity(k)
-    vel[:n, 2] = run.omega(k) * radius  # the kernels carry the rim speed s = r omega
-    vel[:n, 3] = np.where(fixed, 0.0, 1.0 / (np.pi * radius**2))  # as scene.make_scene
-    pair, force, status = run.contacts(k)
-    ci = pair[:, 0].astype(np.int32)
-    cj = np.where(pair[:, 1] < 0, n - 1 - pair[:, 1], pair[:, 1]).astype(np.int32)  # walls -> N + w
-    key = ci.astype(np.int64) * (n + 3) + cj
-    order = np.argsort(key, kind="mergesort")
-    c = np.zeros((ci.size, N_CONTACT_COLUMNS))
-    c[:, IMPULSE] = force[order] * cfg.solver.dt
-    state.update(radius=radius, fixed=fixed, pos=np.asarray(run.position(k), dtype=np.float64),
-                 rot=np.asarray(run.rotation(k), dtype=np.float64), vel=vel,
-                 ref=np.full((n, 2), np.inf), ci=ci[order], cj=cj[order], key=key[order], c=c,
-                 status=status[order].astype(np.int8))
-    sysm.restore(state)
-    h = run.health
-    sysm.scalars = protocol.RunState(phase="repose", step=int(run.step[k]),
-                                     tol_steps=int(h.get("steps_at_tol", 0)),
-                                     tol_cap_hits=int(h.get("cap_hits", 0)))
-    return cfg, sysm
-
-
 def span_frames(span_deg: float, frame_every: int, rate_deg: float) -> int:
     """Consecutive frames covering ``span_deg`` of tilt (as the protocol's end-of-run rule)."""
     return max(1, math.ceil(span_deg / (frame_every * rate_deg) - 1e-9))
@@ -238,7 +192,8 @@ def repose(run_file, *, ke_slide: float = KE_SLIDE, ke_stop: float = KE_STOP,
         run_theta = np.asarray(run.theta_deg, dtype=float)
         first = -1 if from_last else sustained_start(run_ke, True, ke_slide, n_slide)
         start_frame = run.n_frames - 1 if first < 0 else first + n_slide - 1
-        cfg, sysm = rebuild_system(run, start_frame)
+        cfg, sysm = system_from_frame(run, start_frame)
+        sysm.scalars.phase = "repose"
         seed = run.seed
     run_ke, run_theta = run_ke[: start_frame + 1], run_theta[: start_frame + 1]
     run_theta = np.round(run_theta, 10)  # as the continuation's angles (``angle``)

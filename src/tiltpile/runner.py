@@ -25,6 +25,11 @@ removed if it has none (nothing to resume). A complete run is judged against the
 warn limits over all its frames (``tiltpile.health.summarize``, resumed runs included): the summary
 goes to the run file's ``/health`` attrs and to the returned dict (key ``health``; the ensemble
 manifest records it per run), and any warnings are issued as one ``RuntimeWarning``.
+
+Back from the file. ``system_from_frame(run, k)`` is the simulator ``System`` of a stored frame,
+to continue a run from it (``tiltpile repose``) or to measure the solver on its state; the one
+place where a run file's contacts become the kernels' (walls -1, -2, -3 -> N + k,
+``sim.detect.kernel_ids``, the inverse of what ``System.contacts`` stores).
 """
 
 from __future__ import annotations
@@ -33,13 +38,18 @@ import time
 import warnings
 from pathlib import Path
 
+import numpy as np
+
 from tiltpile import config as cfgmod
 from tiltpile import health, store
 from tiltpile.dem import lmp as dem_lmp
 from tiltpile.dem import protocol as dem_protocol
 from tiltpile.sim import protocol
+from tiltpile.sim.detect import kernel_ids
 from tiltpile.sim.jit import flags
-from tiltpile.store import RunWriter
+from tiltpile.sim.solver import IMPULSE, N_CONTACT_COLUMNS
+from tiltpile.sim.step import System
+from tiltpile.store import Run, RunWriter
 
 
 def simulate(config, seed: int, out: str | Path, *, progress: bool | str = True,
@@ -145,6 +155,63 @@ def _simulate(config, seed, out, progress, resume, position, on_progress, pile=N
                 sweeps=ended.sweeps, capped_steps=ended.capped_steps,
                 cap_hits=report["cap_hits"], missed=report["missed_steps"],
                 max_overlap=report["max_overlap"], health=report)
+
+
+def system_from_frame(run: Run | str | Path, k: int = -1) -> tuple[cfgmod.Config, System]:
+    """(config, System) of a run as it was at its frame ``k`` (default the last); ``run`` an open
+    ``store.Run`` or the path of a run file.
+
+    The System is the run configuration's (``protocol.make_system``: same parameters, the seed's
+    sweep-order generator) holding the file's grains (radius, fixed; mass = disk area) and the
+    frame's positions, rotations, velocities and angular velocities. Its contact list is the
+    frame's stored contacts with impulse = force * dt (the impulses of the frame's last step up
+    to rounding; every contact carrying a force is stored), walls mapped back to the kernels'
+    indices (``sim.detect.kernel_ids``), and its reference positions are unset so the first
+    ``advance`` step rebuilds the candidate list and carries those impulses over
+    (``detect.carry_impulses``). Measured on the smoke run (tests/test_repose.py),
+    ``frame_every`` steps from frame k land on frame k + 1 within 1e-14 d in quiet frames and
+    3e-7 d in the (capped) slide; impulses started from zero would need the first steps' sweeps
+    to rebuild them (at the cap, the grains move by 1e-4 d).
+
+    Its ``protocol.RunState``: phase "tilt", ``step`` the frame's global step, ``sweeps`` and
+    ``capped_steps`` 0, and the iteration-cap counters of the run's health record
+    (``steps_at_tol``, ``cap_hits``; 0 in a file without one). It is not a checkpoint: the
+    contact list and the generator are not those the run had, so a continuation need not be
+    bit-identical to the run going on. Raises IndexError for a frame the run does not have.
+    """
+    if not isinstance(run, Run):
+        with store.open_run(run) as r:
+            return system_from_frame(r, k)
+    if not -run.n_frames <= k < run.n_frames:
+        raise IndexError(f"frame {k} out of range: the run has {run.n_frames} frames")
+    k = k % run.n_frames
+    cfg = cfgmod.from_dict(run.config)
+    sysm = protocol.make_system(cfg, run.seed)
+    state = sysm.state()  # parameters and generator from the configuration; arrays replaced below
+    radius = np.asarray(run.radius, dtype=np.float64)
+    fixed = np.asarray(run.fixed, dtype=np.bool_)
+    n = radius.size
+    vel = np.zeros((n + 3, 4))
+    vel[:n, :2] = run.velocity(k)
+    vel[:n, 2] = run.omega(k) * radius  # the kernels carry the rim speed s = r omega
+    vel[:n, 3] = np.where(fixed, 0.0, 1.0 / (np.pi * radius**2))  # as scene.make_scene
+    pair, force, status = run.contacts(k)
+    ci = pair[:, 0].astype(np.int32)
+    cj = kernel_ids(pair[:, 1], n)
+    key = ci.astype(np.int64) * (n + 3) + cj
+    order = np.argsort(key, kind="mergesort")
+    c = np.zeros((ci.size, N_CONTACT_COLUMNS))
+    c[:, IMPULSE] = force[order] * cfg.solver.dt
+    state.update(radius=radius, fixed=fixed, pos=np.asarray(run.position(k), dtype=np.float64),
+                 rot=np.asarray(run.rotation(k), dtype=np.float64), vel=vel,
+                 ref=np.full((n, 2), np.inf), ci=ci[order], cj=cj[order], key=key[order], c=c,
+                 status=status[order].astype(np.int8))
+    sysm.restore(state)
+    h = run.health
+    sysm.scalars = protocol.RunState(phase="tilt", step=int(run.step[k]),
+                                     tol_steps=int(h.get("steps_at_tol", 0)),
+                                     tol_cap_hits=int(h.get("cap_hits", 0)))
+    return cfg, sysm
 
 
 class _Bar:

@@ -7,9 +7,10 @@ from __future__ import annotations
 import numpy as np
 
 from simhelpers import copy_system
-from tiltpile.bench import flow_caps
-from tiltpile.sim import protocol, solver
+from tiltpile.runner import system_from_frame
+from tiltpile.sim import solver
 from tiltpile.sim.rng import make_state
+from tiltpile.store import open_run
 
 STATE = ("pos", "rot", "vel", "ci", "cj", "c", "status")
 
@@ -54,14 +55,14 @@ def test_pruned_sweeps_change_nothing_in_a_pile_held_to_a_tight_tol(settled_pile
 
 def test_pruned_sweeps_change_nothing_in_a_flow(smoke_run):
     """The smoke run of seed 1 at 11 deg (a rearrangement; steps at the cap of 1000, so they also
-    end on a full sweep there): 20 steps with and without pruning, bit for bit."""
+    end on a full sweep there): 20 steps from its frame 110 with and without pruning, bit for bit."""
     path, _ = smoke_run
-    cfg, seed, theta, state = flow_caps.rebuilt_state(path, 110, 2)
+    with open_run(path) as run:
+        theta = float(run.theta_deg[110])
+    cfg = system_from_frame(path, 110)[0]
 
     def make():
-        s = protocol.make_system(cfg, seed)
-        s.restore(state)
-        return s
+        return system_from_frame(path, 110)[1]
     its, end = _same_with_and_without(make, 20, theta, cfg.protocol.tilt_per_step_deg)
     assert (its > solver.PRUNE_AFTER).mean() > 0.5 and (its == cfg.solver.max_iter).any()
     assert _left_out(end) > 0

@@ -50,6 +50,15 @@ def test_interleave_on_a_pile(settled_pile):
     assert len(_repeats(s.ci, s.cj, w)) < 0.02 * ci.size     # ... as the default sweep stores it
 
 
+def test_wall_ids_both_ways():
+    """Kernel indices N + 0, 1, 2 (floor, left, right) are run-file ids -1, -2, -3, and back;
+    grains keep their index."""
+    kernel = np.array([0, 3, 4, 5, 6, 7])                    # N = 5: grains 0, 3, 4; walls 5-7
+    stored = detect.wall_ids(kernel, 5)
+    np.testing.assert_array_equal(stored, [0, 3, 4, -1, -2, -3])
+    np.testing.assert_array_equal(detect.kernel_ids(stored, 5), kernel)
+
+
 def test_carry_impulses_in_any_order():
     """Impulses carry by pair whatever the order of the old and the new list."""
     rng = np.random.default_rng(4)

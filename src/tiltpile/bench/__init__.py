@@ -2,7 +2,7 @@
 ``docs/performance-log.md`` (summarized in ``docs/performance.md``); ``make bench`` regenerates ``figures/performance/``.
 
 Every module runs as ``python -m tiltpile.bench.<name>`` through ``main(argv)`` and measures
-nothing when imported (``python -m tiltpile.bench`` lists them):
+nothing when imported (``python -m tiltpile.bench`` lists them, from the package itself):
 
 ``pile``               the settled piles every measurement starts from, cached in data/bench
 ``timing``             ``tiltpile bench``: the cost of a step on a settled pile of n grains
@@ -10,21 +10,25 @@ nothing when imported (``python -m tiltpile.bench`` lists them):
                        ``scaling``, ``plots``), written to figures/performance/
 ``solver_micro``       ns per contact update of each sweep order, one process
 ``solver_variants``    sweeps, cost and true error of NLGS variants while tilting
-``flow_caps``          the iteration cap in a flowing pile, from a frame of a run
-``precursor_caps``     the iteration cap between precursor events, from frames of a run
-``settle``             when NLGS velocities settle (LMGC90's norms) against the motion of a long solve
-``coarse``             the most a coarse correction (rigid blocks, block stresses) could remove of NLGS's error
 ``compare_ensembles``  onset, z and n_m of ensembles that differ in one setting
 ``guard``              what a cheaper setting costs against how far it moves the figure numbers
-``store_filters``      size and time of the run file's checksums and of compression
-``dask_overhead``      the CPU dask's housekeeping takes from an ensemble's runs
-``ke_threshold``       how Fig. 2a's kinetic-energy threshold moves as runs are added or left out
+``kill_resume``        how often a SIGKILL leaves a run resumable (the frame log)
 ``code_change``        whether an analysis edit keeps the tables' values (old commit against this one)
+
+These are the tools in use. The finished studies (``coarse``, ``settle``, ``flow_caps``,
+``precursor_caps``, ``store_filters``, ``dask_overhead``, ``ke_threshold``) left the package
+after f4398d3, which holds them with their tests; docs/performance.md ("How to measure") says
+how to run one there, and each entry of docs/performance-log.md gives its command.
+(``tests/bench/test_listing.py`` keeps this table equal to the package's modules.)
 
 Measurement code sits beside the command line: it imports ``config``, ``sim``, ``store`` and
 ``analysis``, never ``figures`` or ``cli`` (``tests/test_layers.py``).
 """
 
-STUDIES = ("pile", "timing", "chart", "solver_micro", "solver_variants", "flow_caps",
-           "precursor_caps", "settle", "coarse", "compare_ensembles", "guard", "store_filters",
-           "dask_overhead", "ke_threshold", "code_change")
+
+def tools() -> list[str]:
+    """The modules and subpackages of ``tiltpile.bench`` that run as ``python -m``, by name (what
+    ``python -m tiltpile.bench`` lists): read from the package's directory, so none is left out."""
+    import pkgutil
+
+    return sorted(m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_"))

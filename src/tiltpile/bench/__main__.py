@@ -1,12 +1,21 @@
-"""``python -m tiltpile.bench``: list the measurement modules and the first line of each one's docstring."""
+"""``python -m tiltpile.bench``: list the measurement modules (``tiltpile.bench.tools()``, every
+module of the package) and the first paragraph of each one's docstring."""
 
 import importlib
 
-from tiltpile.bench import STUDIES
+from tiltpile.bench import tools
 
-for name in STUDIES:
-    try:
-        doc = (importlib.import_module(f"tiltpile.bench.{name}").__doc__ or "").strip().splitlines()[0]
-    except ModuleNotFoundError:
-        continue
-    print(f"python -m tiltpile.bench.{name:18s} {doc}")
+
+def summary(name: str) -> str:
+    """The first paragraph of the docstring of ``tiltpile.bench.<name>``, on one line."""
+    doc = importlib.import_module(f"tiltpile.bench.{name}").__doc__ or ""
+    return " ".join(doc.strip().split("\n\n")[0].split())
+
+
+def main() -> None:
+    for name in tools():
+        print(f"python -m tiltpile.bench.{name:18s} {summary(name)}")
+
+
+if __name__ == "__main__":
+    main()

@@ -187,3 +187,10 @@ def wall_ids(cj: np.ndarray, n: int) -> np.ndarray:
     """Kernel indices (N + k for walls) -> run-file ids (-1 floor, -2 left, -3 right)."""
     cj = np.asarray(cj)
     return np.where(cj >= n, -(cj - n) - 1, cj).astype(np.int32)
+
+
+def kernel_ids(j: np.ndarray, n: int) -> np.ndarray:
+    """Run-file ids (-1 floor, -2 left, -3 right) -> kernel indices (N + k for walls): the
+    inverse of :func:`wall_ids`."""
+    j = np.asarray(j)
+    return np.where(j < 0, n - 1 - j, j).astype(np.int32)

@@ -329,9 +329,6 @@ class RunWriter:
         """A temporary name beside ``path`` (``_remove_temporaries`` finds what a kill left)."""
         return path.with_name(f".{path.name}.tmp{os.getpid()}")
 
-    def _before_close(self, f) -> None:
-        """Hook for benchmarks: called with the built file before it is marked complete."""
-
     def _build(self, out: Path) -> str:
         """Write the run file to ``out`` from the log, mark it complete and sync it; its
         attribute digest. A failed write leaves nothing at ``out`` (RunWriteError)."""
@@ -347,7 +344,6 @@ class RunWriter:
                     b.attrs(*framelog.parse_attrs(payload))
                 elif kind == b"SYNC":
                     b.flush()
-            self._before_close(b.f)
             b.f.attrs["complete"] = True
             digest = b.f.attrs[ATTRS_DIGEST] = _attrs_digest(b.f)
             b.close()
