@@ -2,7 +2,7 @@
 ``docs/performance-log.md`` (summarized in ``docs/performance.md``); ``make bench`` regenerates ``figures/performance/``.
 
 Every module runs as ``python -m tiltpile.bench.<name>`` through ``main(argv)`` and measures
-nothing when imported (``python -m tiltpile.bench`` lists them):
+nothing when imported (``python -m tiltpile.bench`` lists them). The live tools:
 
 ``pile``               the settled piles every measurement starts from, cached in data/bench
 ``timing``             ``tiltpile bench``: the cost of a step on a settled pile of n grains
@@ -10,16 +10,16 @@ nothing when imported (``python -m tiltpile.bench`` lists them):
                        ``scaling``, ``plots``), written to figures/performance/
 ``solver_micro``       ns per contact update of each sweep order, one process
 ``solver_variants``    sweeps, cost and true error of NLGS variants while tilting
-``flow_caps``          the iteration cap in a flowing pile, from a frame of a run
-``precursor_caps``     the iteration cap between precursor events, from frames of a run
-``settle``             when NLGS velocities settle (LMGC90's norms) against the motion of a long solve
-``coarse``             the most a coarse correction (rigid blocks, block stresses) could remove of NLGS's error
 ``compare_ensembles``  onset, z and n_m of ensembles that differ in one setting
 ``guard``              what a cheaper setting costs against how far it moves the figure numbers
-``store_filters``      size and time of the run file's checksums and of compression
-``dask_overhead``      the CPU dask's housekeeping takes from an ensemble's runs
-``ke_threshold``       how Fig. 2a's kinetic-energy threshold moves as runs are added or left out
-``code_change``        whether an analysis edit keeps the tables' values (old commit against this one)
+``kill_resume``        how often a SIGKILL at a random moment leaves a run resumable
+``code_change``        whether an analysis edit keeps the tables' values (old commit against this
+                       one), and the ``analysis.legacy_codes.SUPERSEDED`` entries that carry the
+                       records over it
+
+Any other module here is a finished study: no tool and nothing outside the studies imports it,
+and docs/performance-log.md records its measurements under its command
+(``tiltpile.bench.<name>``); tests/test_architecture.py checks both.
 
 Measurement code sits beside the command line: it imports ``config``, ``sim``, ``store`` and
 ``analysis``, never ``figures`` or ``cli`` (``tests/test_layers.py``).
