@@ -3,11 +3,14 @@
 
 Layers, from the bottom up (``LAYERS``). A module imports only from its own package and from
 layers below its own, never from beside or above it; ``tests/test_layers.py`` enforces this and
-that no import circle exists. Data flows up the same way: a configuration is simulated
-(``sim``, numba kernels that know no files, or ``dem``, the same protocol in LAMMPS), written (``store``, the only HDF5 code; ``record``,
-what the figures keep of a finished run), run one (``runner``) or many at a time
-(``ensemble``), analysed (``analysis``), drawn (``figures``, ``view``), measured (``bench``) and
-driven from the command line (``cli``).
+that no import circle exists. Data flows up the same way: a configuration (``config``, its TOML
+presets in ``presets``) is simulated (``sim``, numba kernels that know no files, or ``dem``, the
+same protocol in LAMMPS), its output paths checked (``paths``) and its health judged
+(``health``), written (``store``, the only HDF5 code; ``record``, what the figures keep of a
+finished run), run one (``runner``) or many at a time (``ensemble``), analysed (``analysis``),
+drawn (``figures``) and judged against the paper (``report``), tilted on to its repose angle
+(``repose``), measured (``bench``), looked at (``view``) and driven from the command line
+(``cli``). Where each fact lives, and how to add to the code: docs/architecture.md.
 
 This package imports nothing itself, so that any layer may read ``tiltpile.__version__``.
 """

@@ -1,22 +1,32 @@
 """Analysis of tiltpile runs: every quantity the paper measures, as pure functions.
 
-Modules (imports point down; none reads HDF5 except through :mod:`tiltpile.store` in
-``observables``):
+Modules (imports point down; none reads HDF5 except through :mod:`tiltpile.store`):
 
-``contacts``     active / fully mobilized contacts, bulk layers, z, n_m, delta z_gen, lost
-                 contacts, failing grains, kinetic energy, displacements
-``clusters``     critical clusters, their size, z, n_m, delta z and orientation to gravity
-``avalanche``    quiet / avalanching periods, onsets, theta_m, theta - theta_m, cutoff robustness
-``stats``        log-binned densities, P(s) maximum-likelihood fit, C(tau), failure enhancement,
-                 delta z versus cluster size
-``tables``       the per-frame and per-cluster columns, each declared once and computed by one
-                 registered producer, with the digest of its code (``column_code``)
-``digest``       the digest of the code a function reaches (what ``column_code`` is made of)
-``legacy_codes`` the column codes of records written with one digest of the whole table code
-``observables``  per-run tables (per frame, per cluster), cached beside the runs; per-run onsets
-                 (first 2% onset, first large slide: ``run_table``)
-``zcount``       z = 2 N_c / N under other counting rules (force and gap thresholds, walls,
-                 rattlers, bulk), for ``tiltpile zcount``
+``contacts``      active / fully mobilized contacts under a contact rule, bulk layers, z, n_m,
+                  delta z_gen, lost contacts, failing grains, kinetic energy, displacements
+``clusters``      critical clusters, their size, z, n_m, delta z and orientation to gravity
+``rigidity``      rigid clusters of a frame: the (3,3) pebble game on the body-bar framework
+                  (Fig. 7)
+``avalanche``     quiet / avalanching periods, onsets, theta_m, theta - theta_m, cutoff
+                  robustness, the first large slide
+``stats``         log-binned densities, P(s) maximum-likelihood fit, C(tau), failure enhancement,
+                  delta z versus cluster size, thresholds, bootstrap intervals
+``tables``        the per-frame and per-cluster columns, each declared once (``FRAME_DOCS``,
+                  ``CLUSTER_DOCS``) and computed by one registered producer, with the digest of
+                  its code (``column_code``); every analysis parameter (``DEFAULT_PARAMS``)
+``digest``        the digest of the code a function reaches (what ``column_code`` is made of)
+``legacy_codes``  the column codes of records written with one digest of the whole table code
+                  (``LEGACY``), and of edits that kept the values (``SUPERSEDED``)
+``observables``   per-run tables (per frame, per cluster), cached beside the runs; per-run onsets
+                  (first 2% onset, first large slide: ``run_table``)
+``ensemble_data`` an ensemble directory (run files or their records) as tables, with the columns
+                  a reader declares (``Reads``); the records checked column by column
+``structure``     the pile's structure: packing fraction, contact fabric and the tilt of the
+                  free surface (the preparation study, ``tiltpile repose``)
+``zcount``        z = 2 N_c / N under other counting rules (force and gap thresholds, walls,
+                  rattlers, bulk), for ``tiltpile zcount``
+``mohr_coulomb``  the Mohr-Coulomb reading of the clusters' orientation and its test across a
+                  friction study (``tiltpile study``)
 
 Quick use::
 

@@ -12,8 +12,10 @@ nothing when imported (``python -m tiltpile.bench`` lists them, from the package
 ``solver_variants``    sweeps, cost and true error of NLGS variants while tilting
 ``compare_ensembles``  onset, z and n_m of ensembles that differ in one setting
 ``guard``              what a cheaper setting costs against how far it moves the figure numbers
-``kill_resume``        how often a SIGKILL leaves a run resumable (the frame log)
-``code_change``        whether an analysis edit keeps the tables' values (old commit against this one)
+``kill_resume``        how often a SIGKILL at a random moment leaves a run resumable (the frame log)
+``code_change``        whether an analysis edit keeps the tables' values (old commit against this
+                       one), and the ``analysis.legacy_codes.SUPERSEDED`` entries that carry the
+                       records over it
 
 These are the tools in use. The finished studies (``coarse``, ``settle``, ``flow_caps``,
 ``precursor_caps``, ``store_filters``, ``dask_overhead``, ``ke_threshold``) left the package

@@ -7,6 +7,13 @@ with status 2, having written nothing. Failures past validation are one line too
 a damaged or unusable run file (``store.RunFileError``, also another process writing the same
 file), a failed write (a full disk: "no space left on device while writing FILE; rerun to
 resume"), a health stop (``SimulationError``), an OS error naming its path.
+
+Modules: ``_common`` (what every command shares: the configuration options, the seed type, the
+error path), and one per command of ``COMMANDS``, named after it: ``simulate``, ``dem``,
+``ensemble``, ``observables``, ``verify``, ``report``, ``bench``, ``info``, ``export``,
+``movie``, ``repose``, ``zcount``, ``record``, ``same_piles`` (``tiltpile same-piles``),
+``study`` and ``definitions``. docs/cli.md gives every command's options
+(tests/workflow/test_cli_doc.py checks them against the parser).
 """
 
 from __future__ import annotations

@@ -11,7 +11,7 @@ judges it. :func:`inputs` lists every file it reads.
 Verdicts are computed, not written by hand: each :class:`Claim` has a ``judge`` that looks at the
 numbers and returns (our value as text, verdict, note).
 
-One concern per module; every name below imports from ``tiltpile.report``:
+One concern per module; the names of ``__all__`` import from ``tiltpile.report``:
 
 - :mod:`.judging`: what a claim and its rule are, the four verdicts, and the helpers that read and
   print the numbers (shared by the judges and the tables);
@@ -21,6 +21,8 @@ One concern per module; every name below imports from ``tiltpile.report``:
 - :mod:`.scales`: Fig. 2's headline numbers at every scale, and where each scale's figures live;
 - :mod:`.studies`: the preparation study's section and what the notes cite from the preparation
   and <z>-counting studies;
+- :mod:`.definitions`: the section "What the disagreements depend on": every claim judged under
+  each definition of the definitions study (``tiltpile definitions``);
 - :mod:`.document`: loading, rendering and writing the report, and the files it reads.
 """
 

@@ -8,4 +8,5 @@ Modules, each owning one concept:
 ``step``      one Moreau-Jean time step, and ``advance`` over many steps.
 ``protocol``  deposition until rest, then quasi-static tilt; yields frames and checkpoints.
 ``rng``       a small counter-free xorshift generator whose state is a checkpointable array.
+``jit``       numba's JIT flags in one place, and a guard on numba's cache.
 """

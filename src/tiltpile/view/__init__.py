@@ -10,4 +10,6 @@ from :mod:`tiltpile.analysis`; nothing below ``view`` imports it):
 ``info``     a one-screen summary of a run file or an ensemble directory
 ``diagnostics``  per-frame health series of a run and the ensemble's first onsets
                  (``notebooks/run_diagnostics.ipynb``)
+``output``   what every writer here shares: a progress bar over the frames, and a file written
+             to a temporary name, then renamed
 """

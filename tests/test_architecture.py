@@ -1,0 +1,198 @@
+"""The map stays true (docs/architecture.md): every package's docstring names each of its modules,
+and every file the page names exists, the recipes' file lists with the names they cite in each.
+
+A package's modules are its ``.py`` files (``__init__`` and ``__main__`` aside) and its
+subpackages, read from the source tree, so that a module added or removed is seen here. The
+measurement package ``bench`` names its live tools; any other module of it must be a finished
+study of the few this test knows (imported by nothing but other studies, its measurements in
+docs/performance-log.md), so the check holds whether or not the finished studies are still in
+the package.
+"""
+
+from __future__ import annotations
+
+import ast
+import re
+from pathlib import Path
+
+import pytest
+from importgraph import MODULES, imports_of
+
+ROOT = Path(__file__).resolve().parents[1]
+PKG = ROOT / "src" / "tiltpile"
+MAP = ROOT / "docs" / "architecture.md"
+PACKAGES = sorted(p.parent for p in PKG.rglob("__init__.py") if "__pycache__" not in p.parts)
+
+
+def modules_of(pkg: Path) -> list[str]:
+    """The modules of package directory ``pkg``: its .py files and its subpackages."""
+    files = [p.stem for p in pkg.glob("*.py") if p.stem not in ("__init__", "__main__")]
+    subs = [d.name for d in pkg.iterdir() if (d / "__init__.py").is_file()]
+    return sorted(files + subs)
+
+
+def docstring(pkg: Path) -> str:
+    return ast.get_docstring(ast.parse((pkg / "__init__.py").read_text())) or ""
+
+
+def names(doc: str, name: str) -> bool:
+    """Whether ``doc`` names module ``name`` as code: ``name``, ``name.attr``, :mod:`.name`,
+    ``pkg.name``, ``name/``."""
+    return re.search(rf"(?:``|`|\.){re.escape(name)}(?:``|`|\.|\(|/)", doc) is not None
+
+
+def _dotted(pkg: Path) -> str:
+    return ".".join(pkg.relative_to(PKG.parent).parts)
+
+
+@pytest.mark.parametrize("pkg", [p for p in PACKAGES if p.name != "bench"], ids=_dotted)
+def test_every_package_docstring_names_its_modules(pkg):
+    doc = docstring(pkg)
+    missing = [m for m in modules_of(pkg) if not names(doc, m)]
+    assert not missing, f"{_dotted(pkg)}'s docstring (src/{pkg.relative_to(PKG.parent)}/__init__.py) " \
+                        f"does not name {missing}"
+
+
+# finished studies still in the package, which need not be named as tools: none since they left
+# it (issue 54 item 3, docs/performance.md); every module of bench is a tool the docstring names
+FINISHED_STUDIES: set[str] = set()
+
+
+def _bench_tools(doc: str) -> list[str]:
+    """The modules the bench docstring's table names: the ``name`` that starts a line."""
+    return re.findall(r"^``(\w+)``\s{2,}\S", doc, flags=re.M)
+
+
+def test_bench_names_its_tools_and_the_rest_are_finished_studies():
+    pkg = PKG / "bench"
+    mods = set(modules_of(pkg))
+    tools = _bench_tools(docstring(pkg))
+    assert tools, "the bench docstring names no tool"
+    assert set(tools) <= mods, f"the bench docstring names tools that are not there: {sorted(set(tools) - mods)}"
+    studies = mods - set(tools)
+    assert studies <= FINISHED_STUDIES, (f"the bench docstring does not name {sorted(studies - FINISHED_STUDIES)}: "
+                                         "a live tool is named in its table")
+    log = (ROOT / "docs" / "performance-log.md").read_text()
+
+    def study_of(module: str) -> str | None:
+        parts = module.split(".")
+        return parts[2] if len(parts) > 2 and parts[:2] == ["tiltpile", "bench"] \
+            and parts[2] in studies else None
+
+    for s in sorted(studies):
+        target = f"tiltpile.bench.{s}"
+        importers = {m for m in MODULES
+                     if any(t == target or t.startswith(target + ".") for t, _ in imports_of(m))}
+        outside = sorted(m for m in importers if study_of(m) is None)
+        assert not outside, (f"bench.{s} is not named as a tool in the bench docstring, yet "
+                             f"{outside} import it: name it there")
+        assert f"tiltpile.bench.{s}" in log, (f"bench.{s} is neither named as a tool in the bench "
+                                              "docstring nor a study of docs/performance-log.md")
+
+
+def test_the_bench_tools_check_bites():
+    """The rules above refuse a tool the docstring forgets (it is imported from outside bench)."""
+    doc = docstring(PKG / "bench")
+    assert "timing" in _bench_tools(doc)
+    assert "tiltpile.cli.bench" in {m for m in MODULES
+                                    if any(t == "tiltpile.bench.timing" for t, _ in imports_of(m))}
+    assert not names("``pile``  the piles", "timing") and names(":mod:`.timing`", "timing")
+    assert names("``chart`` (``spec``, ``plots``)", "spec") and not names("inspect the spec", "spec")
+
+
+# ------------------------------------------------------------------------------------------------
+# docs/architecture.md
+
+TEXT = MAP.read_text()
+ROOTS = ("src/", "tests/", "docs/", "notebooks/", "figures/", "paper/", "examples/")
+TOP_FILES = ("Makefile", "README.md", "CHANGELOG.md", "pyproject.toml", "environment.txt")
+
+
+def _section(heading: str) -> str:
+    start = TEXT.index(f"\n## {heading}\n")
+    end = TEXT.find("\n## ", start + 1)
+    return TEXT[start:end if end > 0 else None]
+
+
+def _recipes() -> dict[str, str]:
+    parts = re.split(r"^### (.+)$", _section("Recipes"), flags=re.M)
+    return dict(zip(parts[1::2], parts[2::2]))
+
+
+def existing(path: str) -> list[Path]:
+    """The files or directories ``path`` stands for: itself, or with each ``<...>`` a wildcard
+    (a new file of a recipe is named after the ones it joins, so some must exist)."""
+    if "<" not in path and "*" not in path:
+        p = ROOT / path
+        return [p] if p.exists() else []
+    pattern = re.sub(r"<[^>]*>", "*", path).rstrip("/")
+    return sorted(ROOT.glob(pattern))
+
+
+def _is_path(token: str) -> bool:
+    return token.startswith(ROOTS) or token in TOP_FILES
+
+
+def _file_lists(body: str) -> list[tuple[str, list[str]]]:
+    """(path, [names cited after it]) of each bullet of the recipe's "**Files it touches:**"."""
+    block = body.split("**Files it touches:**", 1)[1].split("\n**", 1)[0]
+    out = []
+    for bullet in re.split(r"\n(?=- )", block.strip()):
+        tokens = re.findall(r"`([^`]+)`", bullet)
+        assert bullet.startswith("- `") and tokens and _is_path(tokens[0]), bullet
+        out.append((tokens[0], [t for t in tokens[1:] if re.fullmatch(r"[A-Za-z_]\w*", t)]))
+    return out
+
+
+def test_the_map_has_every_recipe_and_each_says_its_files_and_its_records():
+    recipes = _recipes()
+    for want in ("Add an observable", "Add a figure", "Add a claim", "Add a preset",
+                 "Change analysis code without stranding the records"):
+        assert want in recipes, f"docs/architecture.md has no recipe '{want}'"
+    for title, body in recipes.items():
+        assert "**Files it touches:**" in body, title
+        assert "**The records:**" in body, title
+        assert _file_lists(body), title
+
+
+@pytest.mark.parametrize("title", list(_recipes()))
+def test_each_recipes_files_exist_and_hold_what_it_names(title):
+    """Every file a recipe lists exists (a new one: files of its kind do), and each name it cites
+    beside a file (``PRESETS``, ``READS``, ...) is in that file."""
+    for path, cited in _file_lists(_recipes()[title]):
+        found = existing(path)
+        assert found, f"'{title}' lists {path}, which does not exist"
+        files = [f for p in found for f in ([p] if p.is_file() else sorted(p.rglob("*")))
+                 if f.is_file()]
+        for name in cited:
+            assert any(re.search(rf"\b{name}\b", f.read_text(errors="ignore")) for f in files), \
+                f"'{title}': {path} has no {name}"
+
+
+def test_every_path_the_map_names_exists():
+    paths = sorted({t for t in re.findall(r"`([^`\s]+)`", TEXT) if _is_path(t)})
+    assert len(paths) > 30
+    missing = [p for p in paths if not existing(p)]
+    assert not missing, f"docs/architecture.md names paths that do not exist: {missing}"
+
+
+def test_the_map_names_every_layer_and_the_docs_link_it():
+    import tiltpile
+
+    layers = _section("The layers")
+    for k, parts in enumerate(tiltpile.LAYERS[:-1]):      # the last layer: python -m tiltpile
+        row = next((line for line in layers.splitlines() if line.startswith(f"| {k} |")), None)
+        assert row is not None, f"docs/architecture.md has no row of layer {k}"
+        assert re.findall(r"`(\w+)`", row.split("|")[2]) == list(parts), (k, row)
+    readme = (ROOT / "README.md").read_text()
+    layout = readme[readme.index("## Layout"):]
+    assert "docs/architecture.md" in "\n".join(layout.splitlines()[:4])    # near the top
+    assert "(architecture.md)" in (ROOT / "docs" / "README.md").read_text()
+
+
+def test_the_path_check_bites():
+    assert existing("src/tiltpile/figures/fig<N>.py") and existing("src/tiltpile/config.py")
+    assert not existing("src/tiltpile/figures/nofig<N>.py") and not existing("src/tiltpile/no.py")
+    files = _file_lists("x\n**Files it touches:**\n\n- `Makefile`: `RUNS_<n>`, `FIG_COMMON`\n"
+                        "- `src/tiltpile/config.py` (or `other.py`): `PRESETS`\n\n**The records:** y")
+    assert files == [("Makefile", ["FIG_COMMON"]), ("src/tiltpile/config.py", ["PRESETS"])]
