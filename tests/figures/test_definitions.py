@@ -129,3 +129,23 @@ def test_an_unknown_definition_is_refused_before_anything_runs(tmp_path):
     (tmp_path / "run_0000.h5").write_bytes(b"")   # never opened: the keys are checked first
     with pytest.raises(ValueError, match="no definition \\['nope'\\]"):
         fd.study(tmp_path, only=("nope",), progress=False, notebooks_dir=ROOT / "notebooks")
+
+
+def test_the_pictures_follow_the_rules():
+    """Two grains on the floor, touching; from frame k to k + 1 every force vanishes and nothing
+    moves: by force both grains fail, on the contact list (gap:0.01) none does, and with the
+    mixed rule (losses by force) both do again."""
+    import numpy as np
+
+    from tiltpile.figures.snapshot import FAIL_OUTSIDE, GRAIN, snapshot_layers
+
+    pos = np.array([[1.0, 0.5], [2.0, 0.5]])
+    pair = np.array([[0, 1], [0, -1], [1, -1]], dtype=np.int32)
+    loaded = np.column_stack([np.ones(3), np.zeros(3)])
+    empty = (np.empty((0, 2), np.int32), np.empty((0, 2)), np.empty(0, np.int8))
+    snap = {"position": pos, "radius": np.full(2, 0.5), "fixed": np.zeros(2, bool),
+            "box_length": 4.0, "pair": pair, "force": loaded, "status": np.ones(3, np.int8),
+            "theta_deg": 0.0, "next": empty, "next_position": pos}
+    assert snapshot_layers(snap)["category"].tolist() == [FAIL_OUTSIDE] * 2
+    assert snapshot_layers(snap, contact_rule="gap:0.01")["category"].tolist() == [GRAIN] * 2
+    assert snapshot_layers(snap, contact_rule="gap:0.01", lost_rule="force")["n_failing"] == 2

@@ -79,13 +79,15 @@ def frame_before_onset(frames: pd.DataFrame, seed: int,
 def snapshot_layers(snap: dict, mu: float = 0.5, mu_wall: float | None = None,
                     eps: float | None = None, link: str = "contacts",
                     cluster_region: str = "mobile", ray_spacing: float = 0.1,
-                    touch_tol: float = 0.05, lost_gap: float | None = None) -> dict:
+                    touch_tol: float = 0.05, lost_gap: float | None = None,
+                    contact_rule: str = "force", lost_rule: str | None = None) -> dict:
     """What the pile pictures of Figs. 1b and 3 draw, from one frame (a :func:`data.snapshot`).
 
     The contacts, mobilized contacts and clusters are those of the observables
     (:func:`tiltpile.analysis.observables.frame_contacts`); failing grains are the mobile ends of
     the contacts lost by the next frame (:func:`~tiltpile.analysis.observables.lost_between`, with
-    the same ``lost_gap``).
+    the same ``lost_gap``), under the same ``contact_rule`` and ``lost_rule``: a gap rule finds
+    the next frame's list from its positions too.
 
     Returns dict: position (N, 2), radius (N,), category (N,) int8 (GRAIN, FIXED, CLUSTER,
     FAIL_IN_CLUSTER, FAIL_OUTSIDE), segments (M, 2, 2) one per fully mobilized contact (centre to
@@ -100,14 +102,23 @@ def snapshot_layers(snap: dict, mu: float = 0.5, mu_wall: float | None = None,
     fc = _ob.frame_contacts(radius, fixed, L, pos, snap["pair"], snap["force"], snap.get("status"),
                             mu=mu, mu_wall=mu_wall, eps=eps, link=link,
                             cluster_region=cluster_region, ray_spacing=ray_spacing,
-                            touch_tol=touch_tol)
+                            touch_tol=touch_tol, contact_rule=contact_rule, lost_rule=lost_rule)
     pair, mobil, labels = fc["pair"], fc["mobilized"], fc["labels"]
     in_cluster = labels >= 0
     failing = np.zeros(n, dtype=bool)
     if snap.get("next") is not None:
         p2, f2 = np.asarray(snap["next"][0]).reshape(-1, 2), snap["next"][1]
         cur = {"pair": p2, "active": _ct.active_mask(f2), "position": snap.get("next_position")}
-        lost = _ob.lost_between({"pair": pair, "active": fc["active"]}, cur, n, radius, L, lost_gap)
+        if (contact_rule, lost_rule) != ("force", None):   # the next frame's list by the rules
+            nxt = _ob.frame_contacts(radius, fixed, L, snap["next_position"], p2, f2,
+                                     snap["next"][2], mu=mu, mu_wall=mu_wall, eps=eps, link=link,
+                                     cluster_region=cluster_region, ray_spacing=ray_spacing,
+                                     touch_tol=touch_tol, contact_rule=contact_rule,
+                                     lost_rule=lost_rule)
+            cur = {"pair": nxt["pair"], "active": nxt["lost_active"],
+                   "position": snap["next_position"]}
+        lost = _ob.lost_between({"pair": pair, "active": fc["lost_active"]}, cur, n, radius, L,
+                                lost_gap)
         failing = _ct.failing_grains(n, pair, lost, fixed)
     cat = np.full(n, GRAIN, dtype=np.int8)
     cat[fixed] = FIXED
@@ -139,7 +150,8 @@ def load_snapshot(ens, seed: int, frame: int) -> dict:
     lay = snapshot_layers(data.snapshot(ens, seed, frame), mu=mu,
                           mu_wall=float(scene.get("mu_wall", mu)), eps=p["eps"], link=p["link"],
                           cluster_region=p["cluster_region"], ray_spacing=p["ray_spacing"],
-                          touch_tol=p["touch_tol"], lost_gap=p["lost_gap"])
+                          touch_tol=p["touch_tol"], lost_gap=p["lost_gap"],
+                          contact_rule=p["contact_rule"], lost_rule=p["lost_rule"])
     lay.update(seed=int(seed), frame=int(frame))
     return lay
 
