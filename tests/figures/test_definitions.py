@@ -74,8 +74,13 @@ def test_the_report_judges_each_definition_as_the_figures(tmp_path):
         assert {c.key: verdict for c, _, verdict, _, _ in judge_all(figs, CLAIMS)} == \
             {k: verdict for k, (_, verdict) in v[key].items()}
     lines = rd.render(doc, CLAIMS)
-    assert lines[1] == "## What the disagreements depend on"
+    assert lines[1] == "## What the disagreements depend on (6 runs of 1000 grains)"
     table = [ln for ln in lines if ln.startswith("| ") and "claim" not in ln and "*agree" not in ln]
+    fixes = {ln.split("**")[1]: ln for ln in lines if ln.startswith("- **") and " fixes " in ln}
+    assert list(fixes) == ["other"]
+    for c in CLAIMS:
+        broke = v["force"][c.key][1] == AGREES and v["list"][c.key][1] != AGREES
+        assert (f"*{c.text}*" in fixes["other"].split("; breaks ")[1]) == broke
     assert len(table) == len(CLAIMS)
     for c in CLAIMS:
         if v["force"][c.key][1] == DISAGREES:
@@ -104,7 +109,7 @@ def test_the_report_cites_the_study_in_the_notes_of_disagreeing_claims(tmp_path)
                             "notebook": {}, "documents": a}]}
     (figs / "definitions.json").write_text(json.dumps(doc))
     text = write_report(figs, tmp_path / "with.md").read_text()
-    assert "## What the disagreements depend on" in text
+    assert "## What the disagreements depend on (6 runs of 1000 grains)" in text
     notes = text.split("## Notes")[1].split("\n## ")[0]
     n_dis = sum(1 for c, _, verdict, _, _ in judge_all(a, CLAIMS) if verdict == DISAGREES)
     assert notes.count("By definition (") == n_dis > 0

@@ -85,7 +85,8 @@ def render(doc: dict | None, claims: list[Claim], scale: str = "") -> list[str]:
            f"fitted by <z> = {_f(_num(fit.get('target')), '.2g')} on the quiet frames "
            f"({fit.get('n_quiet_frames')} frames)")
     z_list = _z_of(doc, "list")
-    lines = ["", f"## What the disagreements depend on{f' ({scale})' if scale else ''}", "",
+    where = scale or f"{doc.get('n_runs')} runs of {doc.get('n_grains')} grains"
+    lines = ["", f"## What the disagreements depend on ({where})", "",
              f"From `{doc.get('command') or 'tiltpile definitions'}`: {doc.get('n_runs')} runs of "
              f"{doc.get('n_grains')} grains ({(doc.get('history') or {}).get('label', '')}), every "
              "claim judged by its own rule on the figure numbers each definition gives. The one "
@@ -106,6 +107,17 @@ def render(doc: dict | None, claims: list[Claim], scale: str = "") -> list[str]:
     for c in claims:
         if base.get(c.key, ("", ""))[1] == DISAGREES:
             lines.append(f"- **{c.text}**: {depends_on(doc, claims, c.key)}.")
+    lines += ["", "What each definition fixes and breaks against ours (a claim that disagrees "
+              "under ours and agrees under it; one that agrees under ours and not under it):", ""]
+    text = {c.key: c.text for c in claims}
+    for d in defs:
+        if d["key"] == OURS:
+            continue
+        fixed = [text[k] for k, (_, vd) in v[d["key"]].items()
+                 if vd == AGREES and base[k][1] == DISAGREES]
+        broken = [text[k] for k, (_, vd) in v[d["key"]].items()
+                  if vd != AGREES and base[k][1] == AGREES]
+        lines.append(f"- **{d['label']}** fixes {_list(fixed)}; breaks {_list(broken)}.")
     keeps = [d for d, t in zip(defs, tally) if d["key"] != OURS
              and _keeps_agreements(v, d["key"], claims)]
     best = max(zip(defs, tally), key=lambda x: (x[1][AGREES], -x[1][DISAGREES]))
@@ -113,6 +125,10 @@ def render(doc: dict | None, claims: list[Claim], scale: str = "") -> list[str]:
               f"{best[1][DISAGREES]} disagree). Definitions that break none of the agreements "
               "under ours: " + ("; ".join(d["label"] for d in keeps) if keeps else "none") + "."]
     return lines
+
+
+def _list(items: list[str]) -> str:
+    return "nothing" if not items else "; ".join(f"*{x}*" for x in items)
 
 
 def _keeps_agreements(v: dict, key: str, claims: list[Claim]) -> bool:
