@@ -154,3 +154,26 @@ def test_the_pictures_follow_the_rules():
     assert snapshot_layers(snap)["category"].tolist() == [FAIL_OUTSIDE] * 2
     assert snapshot_layers(snap, contact_rule="gap:0.01")["category"].tolist() == [GRAIN] * 2
     assert snapshot_layers(snap, contact_rule="gap:0.01", lost_rule="force")["n_failing"] == 2
+
+
+def test_from_records_the_study_gives_what_the_run_files_give(smoke_ensemble, smoke_study, tmp_path):
+    """Records at the default parameters and at the list's (tiltpile record --params) give the
+    study's documents of the run files, number for number; a definition without records is left
+    out and named."""
+    from tiltpile.figures.records import write_records
+
+    g = smoke_study["fit"]["g"]
+    by_key = {d["key"]: d for d in smoke_study["definitions"]}
+    write_records(smoke_ensemble, tmp_path / "records", workers=1, progress=False)
+    write_records(smoke_ensemble, tmp_path / "defs" / "list", workers=1, progress=False,
+                  params=by_key["list"]["params"])
+    doc = fd.study(tmp_path / "records", "smoke", g=g, progress=False, only=("list", "mixed"),
+                   notebooks_dir=ROOT / "notebooks", records=tmp_path / "defs")
+    assert doc["missing"] == ["mixed"] and doc["from"] == "records"
+    got = {d["key"]: d for d in doc["definitions"]}
+    assert list(got) == ["force", "list"]
+    for key in got:
+        for stem, fig in by_key[key]["documents"].items():
+            assert got[key]["documents"][stem]["numbers"] == fig["numbers"], (key, stem)
+    with pytest.raises(ValueError, match="give g"):
+        fd.study(tmp_path / "records", "smoke", records=tmp_path / "defs", progress=False)

@@ -20,6 +20,10 @@ def add_parser(sub) -> None:
                    help="the study's JSON (the report reads figures/definitions.json)")
     p.add_argument("--g", type=float, default=None, metavar="G",
                    help="the contact list's gap in d (default: fitted by <z> = 3.5 on the quiet frames)")
+    p.add_argument("--records", type=Path, default=None, metavar="ROOT",
+                   help="evaluate from records: DIR the records at the default parameters, "
+                        "ROOT/<definition>/ those written at each definition's (tiltpile record "
+                        "--params); needs --g")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
@@ -31,18 +35,30 @@ def run(args) -> int:
 
     from .same_piles import _preset_of
 
+    from tiltpile.record import record_files
+
     if not args.dir.is_dir():
         raise ConfigError(f"{args.dir}: no such ensemble directory")
-    if not sorted(args.dir.glob("run_*.h5")):
-        raise ConfigError(f"{args.dir}: no run_*.h5 files (the definitions need the run files, not "
-                          "their records)")
+    if args.records is None and not sorted(args.dir.glob("run_*.h5")):
+        raise ConfigError(f"{args.dir}: no run_*.h5 files (the definitions need the run files, or "
+                          "--records ROOT with the records of each definition)")
+    if args.records is not None:
+        if not record_files(args.dir):
+            raise ConfigError(f"{args.dir}: no records run_*.npz (with --records, DIR holds the "
+                              "records at the default parameters)")
+        if not args.records.is_dir():
+            raise ConfigError(f"--records {args.records}: no such directory")
+        if args.g is None:
+            raise ConfigError("--records needs --g (the fit of g needs the run files)")
     if args.g is not None and not args.g > 0:
         raise ConfigError(f"--g must be > 0 (d), got {args.g}")
     check_output(args.out, "--out")
     command = "tiltpile definitions " + " ".join(
-        [args.dir.name] + ([f"--g {args.g:g}"] if args.g is not None else []))
+        [str(args.dir) if args.records is not None else args.dir.name]
+        + ([f"--g {args.g:g}"] if args.g is not None else [])
+        + ([f"--records {args.records}"] if args.records is not None else []))
     doc = df.study(args.dir, _preset_of(args.dir), g=args.g, progress=not args.quiet,
-                   command=command)
+                   command=command, records=args.records)
     path = df.write_study(doc, args.out)
     print(f"{len(doc['definitions'])} definitions of {doc['n_runs']} runs, g = {doc['fit']['g']:g} d; "
           f"{path}", file=sys.stdout)

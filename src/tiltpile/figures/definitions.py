@@ -31,8 +31,11 @@ paper leaves open, on one ensemble, for the report to judge claim by claim.
    parameter set, :mod:`tiltpile.analysis.observables`).
 
 The JSON holds the fit and, per definition, its parameters and the figure documents, which the
-report judges (``tiltpile.report``: "What the disagreements depend on"). It needs the run files:
-near pairs come from the positions, which records do not hold for every frame.
+report judges (``tiltpile.report``: "What the disagreements depend on"). It needs the run files
+(near pairs come from the positions, which records do not hold for every frame), or, with
+``--records ROOT`` and a given g, the records each definition's parameters were written at
+(``tiltpile record --params``: ROOT/<key>/), which carry the study at 4000 grains across the
+sessions that compute its runs.
 """
 
 from __future__ import annotations
@@ -136,17 +139,27 @@ PEAK_RULES = (("local", "failure after every quiet local maximum of the largest 
 
 def study(data_dir, preset: str | None = None, g: float | None = None, target: float = zc.PAPER_Z,
           notebooks_dir="notebooks", progress: bool = True, command: str | None = None,
-          only=None) -> dict:
+          only=None, records=None) -> dict:
     """The whole study (module docstring) on the ensemble of run files in ``data_dir``;
-    ``only``: the keys of the definitions to evaluate (None: every one; "force" always)."""
+    ``only``: the keys of the definitions to evaluate (None: every one; "force" always).
+
+    ``records``: instead of run files, records (:mod:`tiltpile.figures.records`): ``data_dir``
+    the records at the default parameters, ``records/<key>/`` those of each definition
+    (``tiltpile record --params``, at the definition's parameters); ``g`` must be given (the fit
+    needs the run files). A definition without records is left out (``missing``), and every
+    definition is evaluated on the seeds all of them hold (``seeds``)."""
     from tiltpile.analysis import run_files
+    from tiltpile.record import record_files
 
     from . import data as _data
-    from .same_piles import FIGURES, figure_documents
+    from .same_piles import FIGURES, figure_documents, subset
 
-    if not run_files(data_dir):
+    if records is None and not run_files(data_dir):
         raise FileNotFoundError(f"no run_*.h5 in {data_dir}: the definitions need the run files "
-                                "(near pairs come from every frame's positions)")
+                                "(near pairs come from every frame's positions), or records of "
+                                "each definition (records=)")
+    if records is not None and g is None:
+        raise ValueError("from records, give g (the fit needs the run files)")
     if only is not None:  # the keys do not depend on g
         keys = [d["key"] for d in definitions(1.0, notebooks_dir)]
         unknown = sorted(set(only) - set(keys))
@@ -167,10 +180,26 @@ def study(data_dir, preset: str | None = None, g: float | None = None, target: f
     defs = definitions(g, notebooks_dir)
     if only is not None:
         defs = [d for d in defs if d["key"] == "force" or d["key"] in only]
+    missing, loaded = [], {}
+    for d in defs:
+        if not d["params"]:
+            continue
+        src = data_dir if records is None else Path(records) / d["key"]
+        if records is not None and not record_files(src):
+            missing.append(d["key"])
+            continue
+        say(f"tables of {d['label']}")
+        loaded[d["key"]] = _data.load(src, preset, None, **d["params"])
+    defs = [d for d in defs if d["key"] not in missing]
+    seeds = sorted(set(int(x) for x in base.seeds).intersection(
+        *(set(int(x) for x in e.seeds) for e in loaded.values())))
+    if len(seeds) < len(base.seeds) or any(len(e.seeds) > len(seeds) for e in loaded.values()):
+        base = subset(base, seeds)
+        loaded = {k: subset(e, seeds) for k, e in loaded.items()}
     out, plain = [], None
     for k, d in enumerate(defs):
         say(f"[{k + 1}/{len(defs)}] {d['label']}")
-        ens = base if not d["params"] else _data.load(data_dir, preset, None, **d["params"])
+        ens = loaded.get(d["key"], base)
         over = {**d["params"], **d["notebook"]}
         if d["params"] or plain is None:
             docs = figure_documents(ens, FIGURES, notebooks_dir, over)
@@ -185,7 +214,8 @@ def study(data_dir, preset: str | None = None, g: float | None = None, target: f
     meta = base.meta
     return {"study": NAME, "command": command, "data_dir": str(data_dir), "preset": preset,
             "n_runs": meta.get("n_runs"), "n_grains": meta.get("n_grains"),
-            "history": meta.get("history"), "fit": fit, "definitions": out}
+            "history": meta.get("history"), "seeds": seeds, "from": "records" if records else "runs",
+            "missing": missing, "fit": fit, "definitions": out}
 
 
 def _declares(stem: str, params: dict, notebooks_dir) -> bool:
