@@ -410,6 +410,20 @@ definitions: | $(STAMP)
 	@test -n "$(wildcard $(DATA)/run_*.h5)" || { echo "make definitions: no run files in DATA=$(DATA) (the definitions need them, not records)"; exit 2; }
 	$(ANALYSIS_ENV) $(PY) -m tiltpile definitions $(DATA) --out $(FIGURES)/definitions.json $(if $(G),--g $(G))
 
+# `make definition-records [PRESET=paper-fast] [DATA=dir] [DEF_G=0.00216] [WORKERS=W]`: the records of
+# every finished run of DATA at the parameters of the definitions the 4000-grain study keeps
+# (the list at DEF_G, the g fitted at 1000 grains; the mixed rule; stride 2), into
+# BASE_FIGURES/definitions/{list,mixed,stride-2}/ (up-to-date ones skipped): run it with
+# `make records` as runs finish, so that `tiltpile definitions BASE_FIGURES/records --records
+# BASE_FIGURES/definitions --g DEF_G` needs no run files.
+DEF_G ?= 0.00216
+.PHONY: definition-records
+definition-records: | $(STAMP)
+	@test -n "$(wildcard $(DATA)/run_*.h5)" || { echo "make definition-records: no run files in DATA=$(DATA)"; exit 2; }
+	$(ANALYSIS_ENV) $(PY) -m tiltpile record $(DATA) --out $(BASE_FIGURES)/definitions/list --params '{"contact_rule": "gap:$(DEF_G)"}' $(if $(WORKERS),--workers $(WORKERS)) --quiet
+	$(ANALYSIS_ENV) $(PY) -m tiltpile record $(DATA) --out $(BASE_FIGURES)/definitions/mixed --params '{"contact_rule": "gap:$(DEF_G)", "lost_rule": "force"}' $(if $(WORKERS),--workers $(WORKERS)) --quiet
+	$(ANALYSIS_ENV) $(PY) -m tiltpile record $(DATA) --out $(BASE_FIGURES)/definitions/stride-2 --params '{"frame_stride": 2}' $(if $(WORKERS),--workers $(WORKERS)) --quiet
+
 # `make study KEY=section.key VALUES="v1 v2 ..." [PRESET=default] [RUNS=M] [WORKERS=W] [NAME=name]
 #             [HISTORY=preset|repose+D] [DATA=/path/outside/the/checkout] [STUDY_FIGURES=dir]`:
 # a parameter study (`tiltpile study`, docs/cli.md "How to study another parameter"). For each
