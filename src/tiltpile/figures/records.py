@@ -22,7 +22,7 @@ A record holds, for one finished run:
   ~0.17 MB at 1000 grains.
 
 Other analysis parameters. Records at parameters P (``params``: any of the tables' parameters,
-:data:`tiltpile.analysis.DEFAULT_PARAMS` but the per-run table's slide_ke and slide_sustain_deg)
+:data:`tiltpile.analysis.DEFAULT_PARAMS` but those of the per-run table, ``RUN_TABLE_PARAMS``)
 go in a directory of their own, one parameter set per directory (``write_records`` and
 ``tiltpile record`` refuse a directory holding records of another set, as they refuse one of
 another configuration); :func:`tiltpile.analysis.ensemble_data.load_records` serves them when
@@ -133,8 +133,8 @@ def _of_kind(v, kind: str) -> bool:
 def check_params(params: dict | None) -> dict:
     """The full table parameters of records written at ``params`` (None or {}: the defaults):
     :func:`~tiltpile.analysis.observables.table_params`, refusing in one line (TypeError) a name
-    that is not a parameter of the tables (the per-run table's slide_ke and slide_sustain_deg do
-    not enter a record) or a value of another type, and (ValueError) a value out of its range,
+    that is not a parameter of the tables (the per-run table's, ``RUN_TABLE_PARAMS``, do not
+    enter a record) or a value of another type, and (ValueError) a value out of its range,
     those the tables' own check leaves to the computation included (min_contacts, merge_gap,
     ray_spacing, touch_tol, eps), so that nothing is computed or written with them."""
     params = dict(params or {})
