@@ -67,6 +67,7 @@ PRESET ?= default
 VARIANT ?=
 SET ?=
 NB ?=
+# the runs of each preset's `make figures`: config.PRESET_TABLE's (tests/workflow/test_presets.py)
 RUNS_smoke := 4
 RUNS_default := 6
 RUNS_default-fresh := 6
@@ -260,15 +261,17 @@ $(FIG_JSON): $(FIGURES)/%.json: notebooks/%.ipynb src/tiltpile/figures/$$(call f
 	@test -f $@ || { echo "$< did not write $@"; exit 1; }
 	@touch $@
 
-# The report reads (tiltpile.report.inputs) the figures' JSON, Fig. 2's JSON of the smoke scale
-# (its table of scales), every figure's JSON of the compared scales (default, default-fresh, paper,
-# paper-fresh: every claim at every scale) and the preparation and <z> studies of the default
-# scale's directory.
+# The report reads (tiltpile.report.inputs) the figures' JSON, Fig. 2's JSON of every scale in
+# it (its table of scales), every figure's JSON of the compared scales (every claim at every
+# scale) and the preparation and <z> studies of the default scale's directory. The scales are
+# config.PRESET_TABLE's (report "fig2" or "claims"; the default scale, figures/, besides these),
+# as are RUNS_<preset> above: make cannot read it, tests/workflow/test_presets.py equates them.
 REPORT_SCALES := smoke default-fresh paper paper-fresh
+REPORT_COMPARED := default-fresh paper paper-fresh
 REPORT_ROOT := $(if $(filter $(REPORT_SCALES),$(notdir $(FIGURES))),$(patsubst %/,%,$(dir $(FIGURES))),$(FIGURES))
 REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparation.json \
-                  $(REPORT_ROOT)/smoke/fig2_avalanche_criterion.json \
-                  $(foreach s,/ /default-fresh/ /paper/ /paper-fresh/,$(REPORT_ROOT)$(s)fig*.json) \
+                  $(foreach s,$(REPORT_SCALES),$(REPORT_ROOT)/$(s)/fig2_avalanche_criterion.json) \
+                  $(foreach s,/ $(REPORT_COMPARED:%=/%/),$(REPORT_ROOT)$(s)fig*.json) \
                   $(REPORT_ROOT)/preparation.json $(REPORT_ROOT)/zcount.json \
                   $(REPORT_ROOT)/definitions.json)
 $(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli/report.py src/tiltpile/__init__.py \

@@ -11,8 +11,8 @@ sections, each a frozen dataclass whose fields carry their type and allowed rang
               (``DemConfig``; docs/dem.md). Absent (``Config.dem`` None) in every preset: a
               configuration without it is a Contact Dynamics run and keeps its hash.
 
-Presets ``smoke``, ``default``, ``default-fresh``, ``paper``, ``paper-fresh`` and ``paper-fast`` live in
-``tiltpile/presets/*.toml``. The fields' defaults are the ``default-fresh`` preset's values (the
+Presets live in ``tiltpile/presets/<name>.toml``, listed once in ``PRESET_TABLE`` (``Preset``:
+the runs of ``make figures``, the figures directory, the place in the report). The fields' defaults are the ``default-fresh`` preset's values (the
 default preset without its history): a configuration built from nothing is that preset
 (``tests/workflow/test_config.py``), and each preset file gives what it changes, its scale always. A preset may be overridden by a TOML file and by ``key=value`` strings with
 dotted keys (``solver.dt=0.005``).
@@ -38,7 +38,41 @@ from importlib import resources
 from pathlib import Path
 from typing import Any
 
-PRESETS = ("smoke", "default", "default-fresh", "paper", "paper-fresh", "paper-fast")
+
+
+@dataclass(frozen=True)
+class Preset:
+    """What the build and the report know of a preset beside its TOML file: the one list of
+    presets and scales (``PRESET_TABLE``), which the command line's ``--preset`` choices, the
+    report's scales and the tests read, and which the Makefile's ``RUNS_<name>``,
+    ``REPORT_SCALES`` and ``REPORT_COMPARED`` repeat (make cannot import it;
+    ``tests/workflow/test_presets.py`` equates them, and the README's and docs/cli.md's tables)."""
+
+    name: str
+    runs: int       # the ensemble of ``make figures PRESET=name``: seeds 0 .. runs - 1
+    figures: str    # its figures directory, from the repository's root (its records: FIGURES/records)
+    # in every report: "claims" (Fig. 2's headline numbers, and every claim's verdict beside the
+    # other such scales'), "fig2" (Fig. 2's headline numbers only) or "" (not yet: no figures)
+    report: str
+
+
+PRESET_TABLE = (
+    Preset("smoke", 4, "figures/smoke", "fig2"),
+    Preset("default", 6, "figures", "claims"),
+    Preset("default-fresh", 6, "figures/default-fresh", "claims"),
+    Preset("paper", 50, "figures/paper", "claims"),
+    Preset("paper-fresh", 50, "figures/paper-fresh", "claims"),
+    Preset("paper-fast", 16, "figures/paper-fast", ""),
+)
+PRESETS = tuple(p.name for p in PRESET_TABLE)
+
+
+def preset_info(name: str) -> Preset:
+    """The ``PRESET_TABLE`` entry of ``name``; ConfigError naming the presets for another name."""
+    for p in PRESET_TABLE:
+        if p.name == name:
+            return p
+    raise ConfigError(f"unknown preset {name!r}; choose one of {', '.join(PRESETS)}")
 
 
 class ConfigError(ValueError):

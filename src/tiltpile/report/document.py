@@ -12,6 +12,8 @@ from __future__ import annotations
 import json
 from pathlib import Path
 
+from tiltpile import config as cfgmod
+
 from .claims import CLAIMS, RULES
 from . import definitions as _definitions
 from .judging import AGREES, DISAGREES, MISSING, Claim
@@ -98,8 +100,9 @@ def render(figs: dict[str, dict], claims: list[Claim], scales: list[str] | None 
     return "\n".join(head + rows + tail + extra + rules) + "\n"
 
 
-# the scales whose verdicts are set side by side (smoke, the test scale, is left out)
-COMPARED = ("default", "default-fresh", "paper", "paper-fresh")
+# the scales whose verdicts are set side by side (config.PRESET_TABLE's report "claims"; smoke,
+# the test scale, is left out)
+COMPARED = tuple(p.name for p in cfgmod.PRESET_TABLE if p.report == "claims")
 # pairs of compared scales that differ in one thing: (what changes, from, to)
 CONTRASTS = (("history", "default-fresh", "default"), ("history", "paper-fresh", "paper"),
              ("scale", "default-fresh", "paper-fresh"), ("scale", "default", "paper"))

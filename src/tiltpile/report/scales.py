@@ -1,5 +1,6 @@
-"""The same headline numbers of Fig. 2 at every scale that has been run (smoke, default,
-default-fresh, paper, paper-fresh; "not yet run" otherwise), and where each scale's figures live (:func:`scale_dirs`).
+"""The same headline numbers of Fig. 2 at every scale of the report (the presets of
+``config.PRESET_TABLE`` with a ``report`` entry; "not yet run" where a scale has no figures), and
+where each scale's figures live (:func:`scale_dirs`).
 """
 
 from __future__ import annotations
@@ -9,11 +10,19 @@ import math
 import statistics
 from pathlib import Path
 
+from tiltpile import config as cfgmod
+
 from .judging import SEPARATION, _ci, _f, _num, _wrong_side, approx
 
 
-SCALES = (("smoke", "smoke"), ("default", ""), ("default-fresh", "default-fresh"), ("paper", "paper"),
-          ("paper-fresh", "paper-fresh"))
+# (scale, its figures directory below the default scale's) of every preset in the report
+# (``config.PRESET_TABLE``, whose order is the columns')
+def _below_default(figures: str) -> str:
+    rel = Path(figures).relative_to(cfgmod.preset_info("default").figures)
+    return "" if rel == Path(".") else rel.as_posix()
+
+
+SCALES = tuple((p.name, _below_default(p.figures)) for p in cfgmod.PRESET_TABLE if p.report)
 
 
 def scale_dirs(figures_dir) -> dict[str, Path]:

@@ -1,0 +1,78 @@
+"""The presets and scales are one list, ``config.PRESET_TABLE``: what the Makefile, the README
+and docs/cli.md say of them is what it says (make cannot import it, so this test equates them)."""
+
+import re
+from pathlib import Path
+
+from tiltpile import config
+from tiltpile.report import document, scales
+
+ROOT = Path(__file__).resolve().parents[2]
+MAKEFILE = (ROOT / "Makefile").read_text()
+
+
+def _make_var(name: str) -> str:
+    m = re.search(rf"^{re.escape(name)} := (.*)$", MAKEFILE, re.M)
+    assert m, f"the Makefile defines no {name}"
+    return m.group(1).strip()
+
+
+def _table_rows(path: Path, heading: str) -> list[list[str]]:
+    """The cells of the rows of the first table after ``heading`` in ``path``."""
+    text = path.read_text()
+    rest = text[text.index(heading):].split("\n")
+    rows = [r for r in rest[1:] if r.startswith("|")]
+    start = rest.index(rows[0])
+    body = []
+    for r in rest[start:]:
+        if not r.startswith("|"):
+            break
+        body.append([c.strip() for c in r.strip("|").split("|")])
+    return body[2:]
+
+
+def test_every_preset_has_its_toml_file_and_its_figures_directory_name():
+    names = [p.name for p in config.PRESET_TABLE]
+    assert len(set(names)) == len(names) and tuple(names) == config.PRESETS
+    for p in config.PRESET_TABLE:
+        assert config.load(p.name).scene.n > 0 and p.runs >= 1
+        assert p.report in ("claims", "fig2", "")
+        assert p.figures == "figures" if p.name == "default" else p.figures == f"figures/{p.name}"
+    assert config.preset_info("paper").runs == 50
+    try:
+        config.preset_info("nope")
+    except config.ConfigError as e:
+        assert "unknown preset 'nope'" in str(e) and "paper-fast" in str(e)
+    else:
+        raise AssertionError("an unknown preset was accepted")
+
+
+def test_the_makefile_runs_each_preset_as_the_table_says():
+    for p in config.PRESET_TABLE:
+        assert _make_var(f"RUNS_{p.name}") == str(p.runs), p.name
+    given = set(re.findall(r"^RUNS_(\S+) :=", MAKEFILE, re.M))
+    assert given == set(config.PRESETS), "the Makefile's RUNS_<preset> name other presets than config's"
+
+
+def test_the_makefile_and_the_report_read_the_same_scales():
+    inreport = [p.name for p in config.PRESET_TABLE if p.report and p.name != "default"]
+    compared = [p.name for p in config.PRESET_TABLE if p.report == "claims" and p.name != "default"]
+    assert _make_var("REPORT_SCALES").split() == inreport
+    assert _make_var("REPORT_COMPARED").split() == compared
+    assert [s for s, _ in scales.SCALES] == [p.name for p in config.PRESET_TABLE if p.report]
+    assert list(document.COMPARED) == ["default"] + compared
+    assert dict(scales.SCALES)["default"] == "" and dict(scales.SCALES)["paper"] == "paper"
+    for a, b in ((a, b) for _, a, b in document.CONTRASTS):
+        assert a in document.COMPARED and b in document.COMPARED
+
+
+def test_the_readme_and_the_cli_doc_list_the_presets_of_the_table():
+    readme = _table_rows(ROOT / "README.md", "## Presets")
+    assert [r[0] for r in readme] == list(config.PRESETS)
+    assert {r[0]: r[3] for r in readme} == {p.name: str(p.runs) for p in config.PRESET_TABLE}
+    assert {r[0]: r[1] for r in readme} == {p.name: str(config.load(p.name).scene.n)
+                                            for p in config.PRESET_TABLE}
+    cli = _table_rows(ROOT / "docs" / "cli.md", "## Presets")
+    assert [r[0] for r in cli] == list(config.PRESETS)
+    assert {r[0]: r[1] for r in cli} == {p.name: str(config.load(p.name).scene.n)
+                                         for p in config.PRESET_TABLE}
