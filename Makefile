@@ -71,6 +71,7 @@ NB ?=
 RUNS_smoke := 4
 RUNS_default := 6
 RUNS_default-fresh := 6
+RUNS_default-dem := 6
 RUNS_paper := 50
 RUNS_paper-fresh := 50
 RUNS_paper-fast := 16
