@@ -84,6 +84,24 @@ def test_pile_against_pile(ens):
     assert pp["difference"]["z_start"]["mean"] == pytest.approx(0.25, abs=1e-12)
     assert all(d == 0.0 for d in pp["per_seed"]["n_onsets"]["difference"])
     assert set(pp["per_seed"]) == set(sp.PER_SEED)
+    assert pp["difference"]["ke_quiet"]["mean"] == 0.0
+
+
+def test_quiet_kinetic_energy_is_the_median_over_quiet_frames_only(ens):
+    """Translational plus rotational, over the frames not avalanching: raising the kinetic energy
+    of the avalanching frames leaves it, doubling every frame's doubles it."""
+    f = ens.frames
+    base = sp.quiet_kinetic_energy(f, ens.seeds)
+    s0 = ens.seeds[0]
+    g = f[(f["run"] == s0) & ~f["avalanching"].astype(bool)]
+    assert base[0] == pytest.approx(float(np.median(g["ke_trans"] + g["ke_rot"])), rel=1e-15)
+    loud = f.copy()
+    loud.loc[loud["avalanching"].astype(bool), "ke_trans"] += 1.0
+    assert np.array_equal(sp.quiet_kinetic_energy(loud, ens.seeds), base, equal_nan=True)
+    double = f.copy()
+    double[["ke_trans", "ke_rot"]] *= 2.0
+    assert np.allclose(sp.quiet_kinetic_energy(double, ens.seeds), 2.0 * base, rtol=1e-15, equal_nan=True)
+    assert np.isfinite(base).all() and (base > 0).all()
 
 
 def test_command_refuses_bad_input(smoke_ensemble, tmp_path, capsys):

@@ -8,7 +8,8 @@ This study says whether the second setting may stand in for the first (``tiltpil
 * **pile against pile** (:func:`pile_against_pile`): per seed, the numbers of
   :func:`tiltpile.figures.preparation.per_run_table` (first onset by the 2% criterion, first
   large slide at the avalanche threshold, onsets, <z> and <n_m> of the quiet frames, the first
-  change above 0.5%, the pile at frame 0 where run files hold it) of each ensemble, their paired
+  change above 0.5%, the pile at frame 0 where run files hold it, the median kinetic energy of
+  the quiet frames) of each ensemble, their paired
   difference per seed, and the mean difference with a BCa bootstrap interval over the seeds
   (:func:`tiltpile.analysis.stats.bootstrap_ci` of the per-seed differences);
 * **ensemble against ensemble** (:func:`ensemble_against_ensemble`): every scalar number of every
@@ -48,7 +49,7 @@ FIGURES = ("fig1_isostaticity", "fig2_avalanche_criterion", "fig3_clusters_failu
            "fig7_rigidity")
 # the per-seed numbers compared pile against pile (columns of preparation.per_run_table)
 PER_SEED = ("theta_first_onset", "theta_first_slide", "n_onsets", "z_quiet", "n_m_quiet",
-            "z_start", "theta_first_change", "phi_start", "fabric_start")
+            "z_start", "theta_first_change", "phi_start", "fabric_start", "ke_quiet")
 # a shift larger than this many combined standard errors moves a figure number
 SIGMA_LIMIT = 2.0
 
@@ -258,7 +259,21 @@ def per_seed(ens, numbers_fig2: dict) -> pd.DataFrame:
     onset = np.asarray([_nan(v) for v in numbers_fig2["theta_m_per_run"]], float)
     slide = np.asarray([_nan(v) for v in numbers_fig2["theta_avalanche_per_run"]], float)
     t = per_run_table(ens, onset, slide)
+    t["ke_quiet"] = quiet_kinetic_energy(ens.frames, ens.seeds)
     return t[["run", *PER_SEED]]
+
+
+def quiet_kinetic_energy(frames: pd.DataFrame, seeds) -> np.ndarray:
+    """Per run (seeds order): the median kinetic energy per mobile grain, translational plus
+    rotational (m g d), of its quiet frames (not avalanching by the lost-contact criterion, as
+    ``data.per_run_quiet`` takes them); NaN for a run without one. How much the pile moves
+    between events, where two engines may differ most (docs/dem.md)."""
+    out = []
+    for s in seeds:
+        g = frames[(frames["run"] == s) & ~frames["avalanching"].astype(bool)]
+        ke = (g["ke_trans"] + g["ke_rot"]).to_numpy(float)
+        out.append(float(np.median(ke)) if ke.size else math.nan)
+    return np.asarray(out, float)
 
 
 def _nan(v) -> float:
