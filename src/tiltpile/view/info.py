@@ -41,6 +41,7 @@ import numpy as np
 from tiltpile.analysis import DEFAULT_PARAMS
 from tiltpile.analysis import avalanche as _av
 from tiltpile.analysis import observables as _ob
+from tiltpile.config import config_toml
 from tiltpile.store import RunFileError, checkpoint_path, open_run, part_path
 
 from .fields import FrameFields
@@ -60,40 +61,6 @@ def _duration(seconds: float) -> str:
     if seconds >= 60:
         return f"{int(seconds // 60)} min {int(seconds % 60):02d} s"
     return f"{seconds:.1f} s"
-
-
-def _toml_value(v) -> str:
-    if isinstance(v, (bool, np.bool_)):
-        return "true" if v else "false"
-    if isinstance(v, (int, np.integer)):
-        return str(int(v))
-    if isinstance(v, (float, np.floating)):
-        v = float(v)
-        if math.isnan(v):
-            return "nan"
-        if math.isinf(v):
-            return "inf" if v > 0 else "-inf"
-        return repr(v)
-    if isinstance(v, str):
-        return json.dumps(v)
-    if isinstance(v, (list, tuple)):
-        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
-    raise TypeError(f"no TOML form for {type(v).__name__} {v!r}")
-
-
-def config_toml(config: dict) -> str:
-    """A configuration dict (sections of scalar values) as TOML text; ``None`` values are left
-    out (TOML has no null: the preset's default applies)."""
-    lines = []
-    for section in sorted(config):
-        lines.append(f"[{section}]")
-        for key, value in sorted(config[section].items()):
-            if value is None:
-                lines.append(f"# {key}: unset")
-            else:
-                lines.append(f"{key} = {_toml_value(value)}")
-        lines.append("")
-    return "\n".join(lines)
 
 
 def human_size(n: int) -> str:
@@ -175,7 +142,8 @@ def _part_line(path: Path) -> str:
 
 def complete_config(config: dict) -> dict:
     """Every key of the configuration, the ones a run file leaves out at their defaults included
-    (``config.LATER_KEYS`` are stored only when set), so that the TOML of :func:`config_toml`
+    (``config.LATER_KEYS`` are stored only when set), so that the TOML of
+    :func:`tiltpile.config.config_toml`
     reproduces the run over any preset. A configuration this version cannot validate (a run of
     another version) is returned as stored."""
     from tiltpile import config as cfgmod
