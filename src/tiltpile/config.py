@@ -1,7 +1,8 @@
 """Run configuration: TOML presets validated into frozen dataclasses.
 
-This module is the only one that parses configuration text. A configuration has four
-sections, each a frozen dataclass whose fields carry their type and allowed range:
+This module is the only one that parses configuration text (:func:`read_toml`, :func:`load`)
+and the one that writes it (:func:`config_toml`: a configuration dict as TOML). A configuration
+has four sections, each a frozen dataclass whose fields carry their type and allowed range:
 
 ``scene``     the grains and the box (what is simulated),
 ``solver``    the Contact Dynamics integrator (how accurately),
@@ -542,6 +543,48 @@ def read_toml(path: str | Path) -> dict[str, Any]:
         return tomllib.loads(text)
     except tomllib.TOMLDecodeError as e:
         raise ConfigError(f"{path}: not valid TOML ({e})") from None
+
+
+def _toml_value(v) -> str:
+    """One value as TOML: a boolean, a number (``nan``, ``inf``), a string or an array of them.
+    A numpy scalar is written as its Python value (numpy is imported only when one is given)."""
+    if type(v).__module__ == "numpy":
+        import numpy as np
+
+        if isinstance(v, np.generic):
+            v = v.item()
+    if isinstance(v, bool):
+        return "true" if v else "false"
+    if isinstance(v, int):
+        return str(int(v))
+    if isinstance(v, float):
+        v = float(v)
+        if math.isnan(v):
+            return "nan"
+        if math.isinf(v):
+            return "inf" if v > 0 else "-inf"
+        return repr(v)
+    if isinstance(v, str):
+        return json.dumps(v)
+    if isinstance(v, (list, tuple)):
+        return "[" + ", ".join(_toml_value(x) for x in v) + "]"
+    raise TypeError(f"no TOML form for {type(v).__name__} {v!r}")
+
+
+def config_toml(config: dict) -> str:
+    """A configuration dict (sections of scalar values) as TOML text, sections and keys sorted,
+    that :func:`read_toml` reads back to the same values; ``None`` values are left out (TOML has
+    no null: the preset's default applies)."""
+    lines = []
+    for section in sorted(config):
+        lines.append(f"[{section}]")
+        for key, value in sorted(config[section].items()):
+            if value is None:
+                lines.append(f"# {key}: unset")
+            else:
+                lines.append(f"{key} = {_toml_value(value)}")
+        lines.append("")
+    return "\n".join(lines)
 
 
 def preset_dict(name: str) -> dict[str, Any]:

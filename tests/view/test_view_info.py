@@ -92,7 +92,7 @@ def test_an_ensemble_says_what_its_runs_cost_and_what_is_left(tiny_ensemble, cap
     """Below the manifest: the finished runs' sweeps and wall time per run and core-hours, then
     the runs left at that median, the running ones less their checkpoints' time so far, and the
     wall time on the last invocation's workers."""
-    from tiltpile.view.info import cost_lines
+    from tiltpile.view.info.ensemble import cost_lines
 
     assert main(["info", str(tiny_ensemble)]) == 0
     out = capsys.readouterr().out
@@ -222,11 +222,11 @@ def test_info_into_a_closed_pipe_is_quiet(tiny_run):
 
 
 def test_durations_read_as_hours_minutes_or_seconds():
-    from tiltpile.view.info import _duration
+    from tiltpile.view.info.common import duration
 
-    assert _duration(12.34) == "12.3 s"
-    assert _duration(185) == "3 min 05 s"
-    assert _duration(3 * 3600 + 2 * 60 + 59) == "3 h 02 min"
+    assert duration(12.34) == "12.3 s"
+    assert duration(185) == "3 min 05 s"
+    assert duration(3 * 3600 + 2 * 60 + 59) == "3 h 02 min"
 
 
 def test_an_ensemble_counts_the_recorded_runs_whose_files_are_gone(tiny_ensemble, tmp_path,

@@ -78,6 +78,31 @@ def test_broken_toml(tmp_path):
         config.load("smoke", tmp_path / "missing.toml")
 
 
+@pytest.mark.parametrize("name", config.PRESETS)
+def test_config_toml_reads_back_to_the_same_configuration_over_any_preset(name, tmp_path):
+    """The TOML config_toml writes of every key of a configuration reads back to the same values
+    and, given as --config over any preset, is that configuration (its hash), history included,
+    fresh or cycled."""
+    cfg = config.load(name)
+    f = tmp_path / "again.toml"
+    f.write_text(config.config_toml(cfg.to_dict()))
+    assert config.read_toml(f) == {k: {key: list(v) if isinstance(v, tuple) else v
+                                       for key, v in sec.items()} for k, sec in cfg.to_dict().items()}
+    assert {base: config.load(base, f).hash() for base in config.PRESETS} \
+        == dict.fromkeys(config.PRESETS, cfg.hash())
+
+
+def test_config_toml_writes_numpy_scalars_as_their_values_and_leaves_none_out():
+    import numpy as np
+
+    text = config.config_toml({"b": {"x": np.float32(0.1), "n": np.int64(3), "on": np.bool_(True),
+                                     "inf": -np.inf, "gone": None}, "a": {"s": np.str_("cd")}})
+    assert text == ('[a]\ns = "cd"\n\n[b]\n# gone: unset\ninf = -inf\nn = 3\non = true\n'
+                    f"x = {float(np.float32(0.1))!r}\n")
+    with pytest.raises(TypeError, match="no TOML form for dict"):
+        config.config_toml({"a": {"t": {"nested": 1}}})
+
+
 def test_cli_reference_lists_every_configuration_key():
     """docs/cli.md's "Configuration keys" paragraph names every field of every section."""
     import dataclasses

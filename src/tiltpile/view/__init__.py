@@ -7,7 +7,9 @@ from :mod:`tiltpile.analysis`; nothing below ``view`` imports it):
              numbers, critical-cluster id, failing grains) from the analysis library
 ``export``   extended XYZ (OVITO, ASE) and VTK XML (ParaView) writers
 ``movie``    the pile drawn as in the paper's Fig. 3, frame after frame, to mp4 or GIF
-``info``     a one-screen summary of a run file or an ensemble directory
+``info``     one-screen summaries (``tiltpile info``), a module by what each reads: a run file
+             (``info.run``), an ensemble directory (``info.ensemble``), records
+             (``info.records``)
 ``diagnostics``  per-frame health series of a run and the ensemble's first onsets
                  (``notebooks/run_diagnostics.ipynb``)
 ``output``   what every writer here shares: a progress bar over the frames, and a file written
