@@ -81,15 +81,17 @@ def test_broken_toml(tmp_path):
 @pytest.mark.parametrize("name", config.PRESETS)
 def test_config_toml_reads_back_to_the_same_configuration_over_any_preset(name, tmp_path):
     """The TOML config_toml writes of every key of a configuration reads back to the same values
-    and, given as --config over any preset, is that configuration (its hash), history included,
-    fresh or cycled."""
+    and, given as --config over any preset of its engine, is that configuration (its hash),
+    history included, fresh or cycled. (A file cannot take a DEM preset's optional [dem] section
+    away: over default-dem, a Contact Dynamics configuration stays a DEM one.)"""
     cfg = config.load(name)
     f = tmp_path / "again.toml"
     f.write_text(config.config_toml(cfg.to_dict()))
     assert config.read_toml(f) == {k: {key: list(v) if isinstance(v, tuple) else v
                                        for key, v in sec.items()} for k, sec in cfg.to_dict().items()}
-    assert {base: config.load(base, f).hash() for base in config.PRESETS} \
-        == dict.fromkeys(config.PRESETS, cfg.hash())
+    bases = [b for b in config.PRESETS if cfg.engine == "lammps" or config.load(b).engine == "cd"]
+    assert len(bases) >= 6
+    assert {base: config.load(base, f).hash() for base in bases} == dict.fromkeys(bases, cfg.hash())
 
 
 def test_config_toml_writes_numpy_scalars_as_their_values_and_leaves_none_out():
