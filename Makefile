@@ -274,7 +274,8 @@ REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparati
                   $(foreach s,$(REPORT_SCALES),$(REPORT_ROOT)/$(s)/fig2_avalanche_criterion.json) \
                   $(foreach s,/ $(REPORT_COMPARED:%=/%/),$(REPORT_ROOT)$(s)fig*.json) \
                   $(REPORT_ROOT)/preparation.json $(REPORT_ROOT)/zcount.json \
-                  $(REPORT_ROOT)/definitions.json)
+                  $(REPORT_ROOT)/definitions.json $(REPORT_ROOT)/default-dem/fig*.json \
+                  $(REPORT_ROOT)/default-dem/same-piles/same_piles.json)
 $(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli/report.py src/tiltpile/__init__.py \
            | $(STAMP)
 	$(PY) -m tiltpile report --figures $(FIGURES) --out $@
@@ -413,6 +414,18 @@ $(PREP_EXECUTED)/.zcount: $(ZCOUNT_CODE) $(PREP_EXECUTED)/.inputs \
 definitions: | $(STAMP)
 	@test -n "$(wildcard $(DATA)/run_*.h5)" || { echo "make definitions: no run files in DATA=$(DATA) (the definitions need them, not records)"; exit 2; }
 	$(ANALYSIS_ENV) $(PY) -m tiltpile definitions $(DATA) --out $(FIGURES)/definitions.json $(if $(G),--g $(G))
+
+# `make engines [ENGINES_REF=data/default] [ENGINES_DEM=data/default-dem]`: the default piles in
+# both engines (preset default-dem: the soft-sphere DEM), pile against pile and every figure
+# number ensemble against ensemble (`tiltpile same-piles`), into figures/default-dem/same-piles/
+# (same_piles.json and both sides' figure documents), which the report's section "Same piles,
+# another model" reads (then `make reports`). Either side may be run files or records.
+ENGINES_REF ?= data/default
+ENGINES_DEM ?= data/default-dem
+.PHONY: engines
+engines: | $(STAMP)
+	$(ANALYSIS_ENV) $(PY) -m tiltpile same-piles $(ENGINES_REF) $(ENGINES_DEM) --ref-label default \
+	  --label default-dem --out figures/default-dem/same-piles --quiet
 
 # `make definition-records [PRESET=paper-fast] [DATA=dir] [DEF_G=0.00216] [WORKERS=W]`: the records of
 # every finished run of DATA at the parameters of the definitions the 4000-grain study keeps

@@ -528,3 +528,52 @@ def test_the_per_scale_table_flags_a_threshold_one_run_moves():
     firm = {"ke_threshold": 0.04, "stability": {"ke_threshold": {
         "values": [0.04], "counts": [50], "firm": True, "n": 50}}}
     assert _loo_flag(firm, "ke_threshold") == "" and _loo_flag({}, "ke_threshold") == ""
+
+
+def _same_piles_study(seeds=(0, 1, 2)):
+    """A same_piles.json as `tiltpile same-piles` writes it (figures.same_piles.study), of three
+    seeds: the DEM's first onset 1 deg later on every pile, its <z> 0.05 higher."""
+    from tiltpile.figures import same_piles as sp
+    per, diff = {}, {}
+    for k in sp.PER_SEED:
+        ref = [10.0 + s for s in seeds]
+        d = {"theta_first_onset": 1.0, "z_quiet": 0.05}.get(k, 0.0)
+        per[k] = {"ref": ref, "value": [r + d for r in ref], "difference": [d] * len(seeds)}
+        diff[k] = {"mean": d, "ci_low": d, "ci_high": d, "n": len(seeds), "median": d}
+    return {"study": sp.NAME, "ref": "default", "label": "default-dem", "seeds": list(seeds),
+            "sigma_limit": 2.0, "n_numbers": 40, "n_with_error": 30, "n_moved": 4, "moved": [],
+            "pile_against_pile": {"seeds": list(seeds), "per_seed": per, "difference": diff}}
+
+
+def test_the_engines_section_says_which_disagreements_both_engines_share(tmp_path):
+    """The default piles in both engines: the pile-against-pile table from the study, and the
+    paper's claims sorted by which engine disagrees with them. Here <z> disagrees in both; the
+    first onset quiet past 14.4 deg only in CD (the DEM's piles quiet far longer); no section
+    without the DEM's figures, and the claims without the study (which it says how to make)."""
+    root = tmp_path / "figures"
+    cd = dict(_fig2(theta_m_min=7.0, theta_m_max=11.7), preset="default", n_grains=1000)
+    _write(root, [cd])
+    text = report.write_report(root, tmp_path / "R.md").read_text()
+    assert "## Same piles, another model" not in text
+    dem = dict(_fig2(theta_m_min=7.0, theta_m_max=16.0), preset="default-dem", n_grains=1000,
+               engine="lammps")
+    _write(root / "default-dem", [dem])
+    sec = report.write_report(root, tmp_path / "R.md").read_text().split(
+        "## Same piles, another model")[1].split("\n## ")[0]
+    by = {c.key: c.text for c in report.CLAIMS}
+    both = next(x for x in sec.splitlines() if x.startswith("- **In both engines**"))
+    cd_only = next(x for x in sec.splitlines() if x.startswith("- **In Contact Dynamics only**"))
+    assert by["z_mean"] in both and by["theta_m"] not in both
+    assert by["theta_m"] in cd_only and by["z_mean"] not in cd_only
+    assert "- **In the DEM only**: none." in sec
+    assert "not yet made (`make engines`)" in sec
+    study = root / "default-dem" / "same-piles" / "same_piles.json"
+    study.parent.mkdir(parents=True)
+    study.write_text(json.dumps(_same_piles_study()))
+    sec = report.write_report(root, tmp_path / "R.md").read_text().split(
+        "## Same piles, another model")[1].split("\n## ")[0]
+    assert "| first 2% onset (deg) | 11.00 | 12.00 | +1.00 [+1.00, +1.00] (3) |" in sec
+    assert "| <z> of the quiet frames | 11.000 | 11.050 | +0.050 [+0.050, +0.050] (3) |" in sec
+    assert "4 of 30 numbers with a jackknife error differ by more than 2 combined" in sec
+    assert root / "default-dem" / "fig2_avalanche_criterion.json" in report.inputs(root)
+    assert study in report.inputs(root)

@@ -156,7 +156,8 @@ def _describe(preset, seeds, cfg, config_hash, analysis_params, costs) -> dict:
     """An ensemble's ``meta`` (the same from run files and from records); ``history``: the piles'
     preparation before the ramp: its legs ``pretilt_deg`` ([] for fresh piles), their own rate
     (0: the ramp's) and a ``label`` (:func:`tiltpile.config.history_label`, "fresh", "±16° 2
-    cycles at 10x rate", ...)."""
+    cycles at 10x rate", ...); ``engine`` "lammps" for the soft-sphere DEM's runs (a ``[dem]``
+    section), absent for Contact Dynamics'."""
     from tiltpile.config import history_label, rate_suffix
 
     proto = cfg.get("protocol", {})
@@ -166,7 +167,8 @@ def _describe(preset, seeds, cfg, config_hash, analysis_params, costs) -> dict:
                "label": history_label(legs) + (rate_suffix(cfg) if legs else "")}
     return {"preset": preset, "n_runs": len(seeds), "seeds": seeds, "n_grains": cfg["scene"]["n"],
             "config_hash": config_hash[:12], "tiltpile_version": __version__,
-            "analysis": dict(analysis_params), "history": history, "cost": ensemble_cost(costs)}
+            "analysis": dict(analysis_params), "history": history, "cost": ensemble_cost(costs),
+            **({"engine": "lammps"} if cfg.get("dem") is not None else {})}
 
 
 def _same(a, b) -> bool:

@@ -23,6 +23,8 @@ One concern per module; the names of ``__all__`` import from ``tiltpile.report``
   and <z>-counting studies;
 - :mod:`.definitions`: the section "What the disagreements depend on": every claim judged under
   each definition of the definitions study (``tiltpile definitions``);
+- :mod:`.engines`: the section "Same piles, another model": the default piles in the second
+  engine (the soft-sphere DEM), pile against pile, and which disagreements both engines share;
 - :mod:`.document`: loading, rendering and writing the report, and the files it reads.
 """
 

@@ -16,8 +16,9 @@ from tiltpile import config as cfgmod
 
 from .claims import CLAIMS, RULES
 from . import definitions as _definitions
+from . import engines as _engines
 from .judging import AGREES, DISAGREES, MISSING, Claim
-from .scales import render_scales, scale_dirs
+from .scales import preset_dir, render_scales, scale_dirs
 from .studies import CITES, STUDIES, load_studies, render_preparation
 
 
@@ -35,9 +36,10 @@ def _figure_stem(figs: dict, prefix: str) -> str | None:
 
 
 def _history(doc: dict) -> str:
-    """', <history label>' of a figure document ('' without one)."""
+    """', <history label>' of a figure document ('' without one), and ', DEM' for the soft-sphere
+    DEM's runs (its ``engine``)."""
     label = (doc.get("history") or {}).get("label")
-    return f", {label}" if label else ""
+    return (f", {label}" if label else "") + (", DEM" if doc.get("engine") == "lammps" else "")
 
 
 def source(doc: dict) -> str:
@@ -105,7 +107,10 @@ def render(figs: dict[str, dict], claims: list[Claim], scales: list[str] | None 
 COMPARED = tuple(p.name for p in cfgmod.PRESET_TABLE if p.report == "claims")
 # pairs of compared scales that differ in one thing: (what changes, from, to)
 CONTRASTS = (("history", "default-fresh", "default"), ("history", "paper-fresh", "paper"),
-             ("scale", "default-fresh", "paper-fresh"), ("scale", "default", "paper"))
+             ("scale", "default-fresh", "paper-fresh"), ("scale", "default", "paper"),
+             ("engine", "default", "default-dem"))
+# the kinds of CONTRASTS, in the order the report names them
+KINDS = ("history", "scale", "engine")
 
 
 def _piles(doc: dict) -> str:
@@ -164,14 +169,16 @@ def _contrasts(judged: dict, changed: list) -> list[str]:
     def piles(s):
         return _piles(judged[s][0])
 
-    head = [f"{what}: {a} → {b}" for what, a, b in CONTRASTS]
-    lines = ["Which change moves each verdict: one history at two sizes (scale) or two histories at "
-             "one size (history); \"same\" where both scales give the same verdict.", "",
+    run = [(what, a, b) for what, a, b in CONTRASTS if a in COMPARED and b in COMPARED]
+    kinds = [k for k in KINDS if any(what == k for what, _, _ in run)]
+    head = [f"{what}: {a} → {b}" for what, a, b in run]
+    lines = ["Which change moves each verdict: " + _or([_KIND_TEXT[k] for k in _KIND_TEXT if k in kinds])
+             + "; \"same\" where both scales give the same verdict.", "",
              "| claim | " + " | ".join(head) + " |", "|---" * (len(head) + 1) + "|"]
-    by: dict[str, list[str]] = {}
+    by: dict[tuple, list[str]] = {}
     for c, cells in changed:
         row, moved = [], set()
-        for what, a, b in CONTRASTS:
+        for what, a, b in run:
             if a not in cells or b not in cells:
                 row.append("not yet run")
             elif cells[a][2] == cells[b][2]:
@@ -180,21 +187,38 @@ def _contrasts(judged: dict, changed: list) -> list[str]:
                 row.append(f"{cells[a][2]} → {cells[b][2]}")
                 moved.add(what)
         lines.append(f"| {c.text} | " + " | ".join(row) + " |")
-        key = " and ".join(sorted(moved, reverse=True)) if moved else "neither pair run"
-        by.setdefault(key, []).append(c.text)
+        by.setdefault(tuple(k for k in KINDS if k in moved), []).append(c.text)
     lines.append("")
-    for key in ("history", "scale", "scale and history", "neither pair run"):
-        if key in by:
-            what = {"neither pair run": "With no pair of scales run for it"}.get(
-                key, f"Changes with the {key}" if key != "scale and history" else
-                "Changes with both the scale and the history")
-            lines.append(f"{what}: " + "; ".join(by[key]) + ".")
+    for key in sorted(by, key=lambda k: (not k, len(k), [KINDS.index(x) for x in k])):
+        lines.append(f"{_changes_with(key)}: " + "; ".join(by[key]) + ".")
     for what, a, b in CONTRASTS:
         if what == "scale" and a in judged and b in judged and \
                 _history(judged[a][0]) != _history(judged[b][0]):
             lines.append(f"The pair {a} → {b} also changes the history ({piles(a)} → {piles(b)}), "
                          "so its change is not the number of grains alone.")
     return lines + [""]
+
+
+_KIND_TEXT = {"scale": "one history at two sizes (scale)",
+              "history": "two histories at one size (history)",
+              "engine": "one pile, history and ramp in two engines (engine)"}
+
+
+def _or(parts: list[str]) -> str:
+    return parts[0] if len(parts) == 1 else ", ".join(parts[:-1]) + " or " + parts[-1]
+
+
+def _changes_with(kinds: tuple) -> str:
+    """The lead of a contrast sentence: 'Changes with the scale', 'Changes with both the scale
+    and the history', ...; 'With no pair of scales run for it' for none."""
+    if not kinds:
+        return "With no pair of scales run for it"
+    named = [f"the {k}" for k in reversed(kinds)]
+    if len(named) == 1:
+        return f"Changes with {named[0]}"
+    if len(named) == 2:
+        return f"Changes with both {named[0]} and {named[1]}"
+    return f"Changes with {', '.join(named[:-1])} and {named[-1]}"
 
 
 def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
@@ -204,10 +228,13 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
         raise FileNotFoundError(f"no fig*.json in {figures_dir}: run the figure notebooks first")
     claims = CLAIMS if claims is None else claims
     studies = load_studies(figures_dir)
+    pair = {s: load_figures(preset_dir(figures_dir, s)) for s in _engines.PAIR}
+    engines = _engines.render(_engines.load(preset_dir(figures_dir, _engines.PAIR[1])),
+                              {s: judge_all(f, claims) for s, f in pair.items() if f}, claims)
     text = render(figs, claims,
                   render_scales(figures_dir) + render_by_scale(figures_dir, claims)
                   + render_preparation(figures_dir)
-                  + _definitions.render(studies.get("definitions"), claims), studies)
+                  + _definitions.render(studies.get("definitions"), claims) + engines, studies)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     tmp = out.with_name(f".{out.name}.tmp")
@@ -219,8 +246,9 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
 def inputs(figures_dir) -> list[Path]:
     """Every file the report of ``figures_dir`` reads that exists: its ``fig*.json``, the
     Fig. 2's JSON of every scale (:func:`render_scales`), every ``fig*.json`` of the scales
-    :func:`render_by_scale` compares, its ``preparation.json`` (:func:`render_preparation`) and the
-    default scale's studies (:func:`load_studies`). The Makefile's report target lists the same
+    :func:`render_by_scale` compares, its ``preparation.json`` (:func:`render_preparation`), the
+    default scale's studies (:func:`load_studies`), and the figures of both engines' scales and
+    their pile-against-pile study (:mod:`.engines`). The Makefile's report target lists the same
     files (tests/workflow/test_build_graph.py checks it)."""
     d = Path(figures_dir)
     root = scale_dirs(d)["default"]
@@ -229,6 +257,8 @@ def inputs(figures_dir) -> list[Path]:
         found += (sorted(s.glob("fig*.json")) if name in COMPARED
                   else [s / "fig2_avalanche_criterion.json"])
     found += [d / "preparation.json"] + [root / f for f in STUDIES.values()]
+    found += [p for s in _engines.PAIR for p in sorted(preset_dir(d, s).glob("fig*.json"))]
+    found += [preset_dir(d, _engines.PAIR[1]) / _engines.STUDY]
     out = []
     for p in found:
         if p.exists() and p not in out:

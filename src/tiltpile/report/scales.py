@@ -33,6 +33,12 @@ def scale_dirs(figures_dir) -> dict[str, Path]:
     return {name: (root / sub if sub else root) for name, sub in SCALES}
 
 
+def preset_dir(figures_dir, name: str) -> Path:
+    """The figures directory of preset ``name`` (any of ``config.PRESET_TABLE``, in the report
+    or not), found from the figures directory of any scale of the report."""
+    return scale_dirs(figures_dir)["default"] / _below_default(cfgmod.preset_info(name).figures)
+
+
 def _gap_text(b: dict, cutoff: float) -> str:
     """'yes|no (lower above / upper below, where)': the shares of the two fitted populations on
     the wrong side of the cutoff (the cutoff_in_gap claim's rule)."""

@@ -1,0 +1,113 @@
+"""The report's section "Same piles, another model": the default piles carried through the same
+history and ramp by the second engine (the soft-sphere DEM, preset ``default-dem``), pile against
+pile (``same_piles.json`` of ``tiltpile same-piles``, ``make engines``), and the paper's claims
+judged on both: which disagreements with the paper both engines share (then not our engine's)
+and which only one has.
+
+The per-claim verdicts are the report's own (:func:`tiltpile.report.document.judge_all` on each
+scale's figures), handed in by :func:`tiltpile.report.document.write_report`.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from .judging import DISAGREES, MISSING, Claim, _f, _num
+from .rigidity import BEYOND
+
+#: (the reference scale, the scale of the other engine): their figures directories are the
+#: report's (``scales.scale_dirs``)
+PAIR = ("default", "default-dem")
+#: where ``make engines`` writes the pile-against-pile study, below the other engine's figures
+STUDY = Path("same-piles") / "same_piles.json"
+# the per-seed numbers of the study (figures.same_piles.PER_SEED), as the table names them
+ROWS = (("theta_first_onset", "first 2% onset (deg)", ".2f"),
+        ("theta_first_slide", "first large slide (deg)", ".2f"),
+        ("n_onsets", "onsets by the 2% criterion", ".1f"),
+        ("theta_first_change", "first change above 0.5% (deg)", ".2f"),
+        ("z_start", "bulk z at frame 0 (after the history)", ".3f"),
+        ("z_quiet", "<z> of the quiet frames", ".3f"),
+        ("n_m_quiet", "<n_m> of the quiet frames", ".3f"),
+        ("phi_start", "packing fraction at frame 0", ".4f"),
+        ("fabric_start", "fabric anisotropy at frame 0", ".3f"),
+        ("ke_quiet", "median KE per grain, quiet frames (m g d)", ".2e"))
+
+
+def load(figures_dir) -> dict | None:
+    """The pile-against-pile study of the other engine's figures directory (None without one)."""
+    p = Path(figures_dir) / STUDY
+    return json.loads(p.read_text()) if p.is_file() else None
+
+
+def _mean(values) -> float:
+    v = [_num(x) for x in values]
+    v = [x for x in v if math.isfinite(x)]
+    return sum(v) / len(v) if v else math.nan
+
+
+def pile_table(study: dict) -> list[str]:
+    """Markdown rows: per number, the mean of each engine over the seeds, and the mean paired
+    difference with its 95% bootstrap interval over the seeds that have both."""
+    pp = study["pile_against_pile"]
+    ref, other = study["ref"], study["label"]
+    lines = [f"| per pile | {ref} | {other} | {other} - {ref} (95% interval, seeds with both) |",
+             "|---|---|---|---|"]
+    for key, label, fmt in ROWS:
+        if key not in pp["per_seed"]:
+            continue
+        s, d = pp["per_seed"][key], pp["difference"][key]
+        diff = (f"{_f(_num(d['mean']), '+' + fmt)} [{_f(_num(d['ci_low']), '+' + fmt)}, "
+                f"{_f(_num(d['ci_high']), '+' + fmt)}] ({d['n']})" if math.isfinite(_num(d["mean"]))
+                else f"n/a ({d['n']})")
+        lines.append(f"| {label} | {_f(_mean(s['ref']), fmt)} | {_f(_mean(s['value']), fmt)} | {diff} |")
+    return lines
+
+
+def shared(judged: dict[str, list], claims: list[Claim]) -> dict[str, list[str]]:
+    """{kind: [claim text (ours; theirs)]} of the claims of the paper that either engine's
+    figures disagree with: "both" (not our engine's), "cd" (ours only), "dem" (the other engine
+    only); ``judged``: {scale: judge_all's rows} of the two scales of ``PAIR``."""
+    ref, other = (judged[s] for s in PAIR)
+    out = {"both": [], "cd": [], "dem": []}
+    for c, a, b in zip(claims, ref, other):
+        va, vb = a[2], b[2]
+        if c.paper == BEYOND or DISAGREES not in (va, vb) or MISSING in (va, vb):
+            continue
+        kind = "both" if va == vb == DISAGREES else "cd" if va == DISAGREES else "dem"
+        out[kind].append(f"{c.text} (paper {c.paper}; CD {a[1]}, {va}; DEM {b[1]}, {vb})")
+    return out
+
+
+def render(study: dict | None, judged: dict[str, list], claims: list[Claim]) -> list[str]:
+    """Markdown lines of the section; empty unless both scales of ``PAIR`` have figures. Without
+    the study, the claims only (and how to make it)."""
+    if any(s not in judged for s in PAIR):
+        return []
+    ref, other = PAIR
+    lines = ["", "## Same piles, another model", "",
+             f"The {ref} piles (the same seeds, so Contact Dynamics deposits the same piles) carried "
+             f"through the same history and ramp by a second, independent engine: the soft-sphere "
+             f"DEM of LAMMPS (preset `{other}`; Hookean contacts, k_n = 2e5 m g / d, restitution "
+             "0.1, tangential springs k_t = 2/7 k_n, mu = 0.5; docs/dem.md), analysed by the same "
+             f"library. Its verdicts are the `{other}` column of the tables above."]
+    if study is None:
+        lines += ["", "The pile-against-pile study is not yet made (`make engines`)."]
+    else:
+        n = len(study["seeds"])
+        lines += ["", f"Pile against pile on {n} seeds (`make engines`, `tiltpile same-piles`): "
+                  "the mean of each engine over the seeds, and the mean paired difference.", ""]
+        lines += pile_table(study)
+        lines += ["", f"Every figure number ensemble against ensemble: {study['n_moved']} of "
+                  f"{study['n_with_error']} numbers with a jackknife error differ by more than "
+                  f"{study['sigma_limit']:g} combined standard errors "
+                  f"({study['n_numbers']} numbers in all)."]
+    k = shared(judged, claims)
+    lines += ["", "Where the paper and our piles disagree:", ""]
+    lines.append("- **In both engines** (not our engine's doing): "
+                 + ("; ".join(k["both"]) if k["both"] else "none") + ".")
+    lines.append("- **In Contact Dynamics only** (the DEM agrees): "
+                 + ("; ".join(k["cd"]) if k["cd"] else "none") + ".")
+    lines.append("- **In the DEM only**: " + ("; ".join(k["dem"]) if k["dem"] else "none") + ".")
+    return lines
