@@ -140,7 +140,7 @@ NOTEBOOKS := $(wildcard notebooks/fig*.ipynb)
 FIG_JSON := $(patsubst notebooks/%.ipynb,$(FIGURES)/%.json,$(NOTEBOOKS))
 # The code a figure's JSON depends on. FIG_COMMON: what every figure notebook imports (data and
 # style, the analysis but for the two studies' own modules, the run-file and record readers, the
-# configuration (the piles' history in every JSON's header), the package's version); FIG_USES_<module>: the other modules of src/tiltpile its figure module
+# configuration (the piles' history in every JSON's header), the writers of whole files, the package's version); FIG_USES_<module>: the other modules of src/tiltpile its figure module
 # imports, directly or not. A figure module imports no other figure's module (shared helpers
 # live in data.py, style.py, snapshot.py), save the preparation study, which is Fig. 2's
 # computation on several ensembles.
@@ -148,7 +148,8 @@ FIG_JSON := $(patsubst notebooks/%.ipynb,$(FIGURES)/%.json,$(NOTEBOOKS))
 ANALYSIS := $(wildcard src/tiltpile/analysis/*.py src/tiltpile/analysis/*/*.py)
 FIG_COMMON := $(wildcard src/tiltpile/__init__.py src/tiltpile/figures/__init__.py \
                          src/tiltpile/figures/style.py src/tiltpile/figures/data.py \
-                         src/tiltpile/record.py src/tiltpile/store/*.py src/tiltpile/config.py) \
+                         src/tiltpile/record.py src/tiltpile/store/*.py src/tiltpile/config.py \
+                         src/tiltpile/outputs.py) \
               $(filter-out %/structure.py %/zcount.py,$(ANALYSIS))
 FIG_USES_fig1 := src/tiltpile/figures/snapshot.py
 FIG_USES_fig3 := src/tiltpile/figures/snapshot.py
@@ -168,9 +169,22 @@ endef
 
 figures: $(FIG_JSON) $(REPORT) $(DIAGNOSTICS)
 
+# One build at a time per figures directory: before anything is written (but after the NB check,
+# which writes nothing), FIGURES/.build.lock is taken for this make process and held until it
+# exits, by a background process that watches it (`python -m tiltpile.outputs hold`; a flock the
+# kernel releases even when make is killed). A second `make figures` on the same FIGURES, or
+# any of its figure targets, is refused in one line naming the directory and the make that holds
+# it. Every target that writes (the runs' stamp, the records' stamp, the notebook parameters and
+# through them each figure, the report) waits for it. The commands run inside take their own
+# locks: `tiltpile ensemble` refuses a second one on its DIR, `observables` and `record` wait
+# for the one writing their cache or RECORDS (docs/faults.md, "two builds at once").
+.PHONY: build-lock
+build-lock: | $(STAMP) check-nb
+	@$(PY) -m tiltpile.outputs hold $(FIGURES) .build.lock --what "make figures" --pid $$PPID
+
 # The runs and their observables. Always checked (the ensemble skips finished runs); the stamp
 # lists every run file's name, size and time and changes only when a run does.
-$(DATA)/.runs: FORCE | $(STAMP) check-nb
+$(DATA)/.runs: FORCE | $(STAMP) check-nb build-lock
 	@test -n "$(RUNS)" || { echo "unknown PRESET=$(PRESET): give RUNS=M"; exit 2; }
 ifeq ($(strip $(SET)),)
 	$(PY) -m tiltpile ensemble --preset $(PRESET) --runs $(RUNS) --out $(BASE_DATA) $(ENSEMBLE_ARGS)
@@ -190,7 +204,7 @@ endif
 # The records instead of the runs (FROM_RECORDS): always checked; the stamp lists the SHA-256 of
 # every record used and changes only when one of them does. With fewer records used than there
 # are (RUNS), FIG_DATA is made anew: links to the records used.
-$(EXECUTED)/.records: FORCE | check-nb
+$(EXECUTED)/.records: FORCE | check-nb build-lock
 	@mkdir -p $(@D)
 	@ls $(RECORDS)/run_*.npz > /dev/null 2>&1 || { echo "no records run_*.npz in $(RECORDS): write them with \
 	  'make records PRESET=$(PRESET) DATA=/path/to/runs'"; exit 2; }
@@ -245,7 +259,7 @@ check-nb: | $(STAMP)
 ifneq ($(strip $(NB)),)
 	@$(PY) -m tiltpile.figures.parameters check $(NB_NOTEBOOKS) -- $(NB)
 endif
-$(EXECUTED)/%.parameters.yaml: FORCE | $(STAMP) check-nb
+$(EXECUTED)/%.parameters.yaml: FORCE | $(STAMP) check-nb build-lock
 	@mkdir -p $(@D)
 	@$(PY) -m tiltpile.figures.parameters select notebooks/$*.ipynb \
 	  --note 'data_dir=$(FIG_DATA) preset=$(PRESET)' -- $(NB) > $@.tmp && $(call update_if_changed,$@)
@@ -277,7 +291,7 @@ REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparati
                   $(REPORT_ROOT)/definitions.json $(REPORT_ROOT)/default-dem/fig*.json \
                   $(REPORT_ROOT)/default-dem/same-piles/same_piles.json)
 $(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli/report.py src/tiltpile/__init__.py \
-           | $(STAMP)
+           src/tiltpile/outputs.py | $(STAMP)
 	$(PY) -m tiltpile report --figures $(FIGURES) --out $@
 
 # `make reports`: every committed report rewritten from the committed figures' JSON, nothing run
@@ -349,7 +363,8 @@ PREP_PARAMS = {"data_dirs": [$(subst $(prep_space),$(prep_comma),$(foreach d,$(P
 # what `tiltpile zcount` computes with: its study module and what that imports, and the command
 ZCOUNT_CODE := $(wildcard src/tiltpile/__init__.py src/tiltpile/figures/__init__.py \
                           src/tiltpile/figures/style.py src/tiltpile/figures/zcount.py \
-                          src/tiltpile/record.py src/tiltpile/store/*.py src/tiltpile/cli/zcount.py) \
+                          src/tiltpile/record.py src/tiltpile/store/*.py src/tiltpile/cli/zcount.py \
+                          src/tiltpile/outputs.py) \
                $(filter-out %/ensemble_data.py %/legacy_codes.py %/structure.py,$(ANALYSIS))
 .PHONY: preparation preparation-runs zcount
 preparation-runs: | $(STAMP) check-nb

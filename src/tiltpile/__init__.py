@@ -6,7 +6,7 @@ layers below its own, never from beside or above it; ``tests/test_layers.py`` en
 that no import circle exists. Data flows up the same way: a configuration (``config``, its TOML
 presets in ``presets``) is simulated (``sim``, numba kernels that know no files, or ``dem``, the
 same protocol in LAMMPS), its output paths checked (``paths``) and its health judged
-(``health``), written (``store``, the only HDF5 code; ``record``, what the figures keep of a
+(``health``), its outputs written one writer at a time and replaced whole (``outputs``), written (``store``, the only HDF5 code; ``record``, what the figures keep of a
 finished run), run one (``runner``) or many at a time (``ensemble``), analysed (``analysis``),
 drawn (``figures``) and judged against the paper (``report``), tilted on to its repose angle
 (``repose``), measured (``bench``), looked at (``view``) and driven from the command line
@@ -21,7 +21,7 @@ __version__ = "0.1.0"
 LAYERS = (
     ("config", "presets", "sim"),         # validated parameters and presets; the simulator
     ("dem",),                             # the second engine: soft-sphere DEM (LAMMPS)
-    ("paths", "health"),                  # output paths; health limits of a run
+    ("paths", "health", "outputs"),       # output paths; health limits of a run; output locks
     ("store", "record"),                  # the run file (HDF5); the run record (figures' inputs)
     ("runner",),                          # one run: simulate, check health, write
     ("ensemble", "analysis"),             # many runs on dask; observables from run files

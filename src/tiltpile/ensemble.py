@@ -34,7 +34,8 @@ is recorded and the other runs go on; ``run_ensemble`` returns the manifest and 
 with status 1 if any run failed. An existing ``DIR`` whose manifest (or any ``run_*.h5``) belongs to
 another configuration is refused with ``ConfigError`` before anything is written, as is bad input
 (no seeds, a negative seed or one past 2**63 - 1, ``workers < 1``). Two invocations on one ``DIR`` at once are refused too
-(``DIR/.ensemble.lock``, an advisory ``flock`` released when the process dies).
+(``DIR/.ensemble.lock``, an advisory ``flock`` released when the process dies:
+:func:`tiltpile.outputs.output_lock`; ``OutputBusy``, one line naming the holder).
 
 numba in workers. The kernels are compiled with ``cache=True`` (``sim/jit.py``) and without
 ``parallel``: one task uses one core. Before submitting, the client compiles them once by stepping a
@@ -79,6 +80,7 @@ from pathlib import Path
 
 import tiltpile
 from tiltpile.config import Config, ConfigError
+from tiltpile.outputs import output_lock
 
 MANIFEST = "ensemble.json"
 LOCK = ".ensemble.lock"
@@ -373,21 +375,6 @@ def _progress_sender(log, topic: str, seed: int, every: float = 2.0):
 # -- the ensemble (client side) ---------------------------------------------------------------------
 
 @contextlib.contextmanager
-def _dir_lock(out_dir: Path):
-    import fcntl
-
-    fd = os.open(out_dir / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
-    try:
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except OSError:
-            raise ConfigError(f"another tiltpile ensemble is running in {out_dir}") from None
-        yield
-    finally:
-        os.close(fd)
-
-
-@contextlib.contextmanager
 def _client(scheduler, workers: int | None, n_tasks: int):
     from distributed import Client, LocalCluster
 
@@ -438,7 +425,8 @@ def run_ensemble(config: Config, seeds, out_dir: str | Path, *, scheduler=None, 
     ``scheduler``: None for a LocalCluster of ``workers`` processes (default: one per core, at most
     one per run), or the address of an existing scheduler (``tcp://host:port``) or a cluster object
     with ``scheduler_address``. ``progress``: one tqdm bar over runs on stderr (readable in a log).
-    Raises ConfigError, having written nothing, on bad input or a directory of another configuration.
+    Raises ConfigError, having written nothing, on bad input or a directory of another configuration,
+    and ``outputs.OutputBusy`` (one line) while another ensemble runs in ``out_dir``.
     A failed run does not raise: it is ``status: failed`` in the manifest (see ``failed_runs``).
     """
     if not isinstance(config, Config):
@@ -462,7 +450,7 @@ def run_ensemble(config: Config, seeds, out_dir: str | Path, *, scheduler=None, 
         if todo:
             client, engine = stack.enter_context(_client(scheduler, workers, len(todo)))
         out_dir.mkdir(parents=True, exist_ok=True)
-        stack.enter_context(_dir_lock(out_dir))
+        stack.enter_context(output_lock(out_dir, LOCK, "tiltpile ensemble"))
         damaged = {}
         old = _check_dir(config, out_dir, damaged, seeds, verified)  # again, now that we hold the lock
         _move_aside(damaged)

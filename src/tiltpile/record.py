@@ -51,7 +51,6 @@ from __future__ import annotations
 
 import io
 import json
-import os
 import zipfile
 import zlib
 from dataclasses import dataclass, field
@@ -63,6 +62,7 @@ import numpy as np
 import pandas as pd
 
 from tiltpile import __version__
+from tiltpile.outputs import replaced_whole
 
 FORMAT = "tiltpile-run-record"
 FORMAT_VERSION = 1
@@ -187,25 +187,18 @@ def write_record(path, *, meta: dict, frames: pd.DataFrame, clusters: pd.DataFra
     members["meta"] = np.array(json.dumps(doc, sort_keys=True, allow_nan=True))
 
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "wb") as fh:
-            with zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_DEFLATED, allowZip64=True) as zf:
-                for name in sorted(members):
-                    buf = io.BytesIO()
-                    a = np.asarray(members[name])   # (ascontiguousarray would make 0-d 1-d)
-                    np.lib.format.write_array(buf, a if a.flags.c_contiguous else a.copy(order="C"),
-                                              allow_pickle=False)
-                    info = zipfile.ZipInfo(f"{name}.npy", date_time=_ZIP_TIME)
-                    info.compress_type = zipfile.ZIP_DEFLATED
-                    info.external_attr = 0o644 << 16
-                    zf.writestr(info, buf.getvalue())
-            fh.flush()
-            os.fsync(fh.fileno())
-        os.replace(tmp, path)
-    except BaseException:   # a full disk, a kill: no half-written temporary stays behind
-        tmp.unlink(missing_ok=True)
-        raise
+    # synced and renamed when complete; a full disk, a kill: no half-written temporary stays behind
+    with replaced_whole(path) as tmp, open(tmp, "wb") as fh, \
+            zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_DEFLATED, allowZip64=True) as zf:
+        for name in sorted(members):
+            buf = io.BytesIO()
+            a = np.asarray(members[name])   # (ascontiguousarray would make 0-d 1-d)
+            np.lib.format.write_array(buf, a if a.flags.c_contiguous else a.copy(order="C"),
+                                      allow_pickle=False)
+            info = zipfile.ZipInfo(f"{name}.npy", date_time=_ZIP_TIME)
+            info.compress_type = zipfile.ZIP_DEFLATED
+            info.external_attr = 0o644 << 16
+            zf.writestr(info, buf.getvalue())
     return path
 
 

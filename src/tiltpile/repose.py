@@ -48,7 +48,6 @@ breaks them raises ``SimulationError``.
 from __future__ import annotations
 
 import math
-import os
 import time
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
@@ -391,16 +390,12 @@ def summarize(results) -> dict:
 
 
 def write_json(out, document: dict) -> None:
-    """Write ``document`` to ``out`` via a temporary file renamed over it when complete."""
+    """Write ``document`` to ``out`` via a temporary file synced and renamed over it when
+    complete (:func:`tiltpile.outputs.replaced_whole`)."""
     import json
 
-    out = Path(out)
-    tmp = out.with_name(f".{out.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "w") as fh:
-            json.dump(document, fh, indent=1, allow_nan=False)
-            fh.write("\n")
-        os.replace(tmp, out)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
+    from tiltpile.outputs import replaced_whole
+
+    with replaced_whole(out) as tmp, open(tmp, "w") as fh:
+        json.dump(document, fh, indent=1, allow_nan=False)
+        fh.write("\n")

@@ -1,6 +1,6 @@
 """Every figure notebook runs through papermill on a tiny smoke ensemble, and its numbers are locked.
 
-The session fixture (``smoke_ensemble``, tests/figures/conftest.py) simulates three smoke piles
+The session fixture (``smoke_ensemble``, tests/conftest.py) simulates three smoke piles
 (seeds 1-3) through the ensemble runner, as `make figures PRESET=smoke` would. Each notebook then runs on them exactly as `make figures` runs
 it (same kernel, same parameters, working directory the repository) and writes its PDF, PNG and
 JSON to a temporary directory. The JSON numbers are compared with the baselines in
@@ -37,7 +37,7 @@ ROOT = Path(__file__).resolve().parents[2]
 NOTEBOOK_DIR = ROOT / "notebooks"
 NOTEBOOKS = sorted(NOTEBOOK_DIR.glob("fig*.ipynb"))
 PAPER = next((ROOT / "paper").glob("*.tex"))
-SEEDS = [1, 2, 3]   # the seeds of the session's smoke ensemble (tests/figures/conftest.py)
+SEEDS = [1, 2, 3]   # the seeds of the session's smoke ensemble (tests/conftest.py)
 RTOL, ATOL = 1e-7, 1e-10
 
 

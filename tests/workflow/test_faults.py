@@ -13,6 +13,7 @@ import hashlib
 import json
 import os
 import shutil
+import socket
 import subprocess
 import sys
 from pathlib import Path
@@ -651,19 +652,22 @@ def test_part_held_open_by_a_writer_without_our_lock_is_not_truncated(tmp_path, 
 
 
 def test_a_second_ensemble_on_one_directory_is_refused(tmp_path, tiny):
-    """Two `tiltpile ensemble` on one DIR at once: the second is refused (DIR/.ensemble.lock, held
-    here by this test as a first invocation would) before it writes anything."""
-    import fcntl
-
+    """Two `tiltpile ensemble` on one DIR at once: the second is refused in one line naming the
+    directory, the first and the lock (DIR/.ensemble.lock, held here by this test as a first
+    invocation holds it) before it writes anything."""
     from tiltpile.ensemble import LOCK, run_ensemble
+    from tiltpile.outputs import OutputBusy, lock_file, note, unlock_file
 
     d = tmp_path / "ens"
     d.mkdir()
-    fd = os.open(d / LOCK, os.O_RDWR | os.O_CREAT, 0o644)
+    fd = lock_file(d / LOCK, note("tiltpile ensemble"))
     try:
-        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        with pytest.raises(config.ConfigError, match=f"another tiltpile ensemble is running in {d}"):
+        with pytest.raises(OutputBusy) as e:
             run_ensemble(tiny, [3], d, progress=False)
+        assert str(e.value) == (f"{d} is busy: tiltpile ensemble (pid {os.getpid()} on "
+                                f"{socket.gethostname()}) is writing it (lock {d / LOCK}); wait for "
+                                "it to finish or stop it (nothing was changed)")
+        assert sorted(p.name for p in d.iterdir()) == [LOCK]
     finally:
-        os.close(fd)
-    assert sorted(p.name for p in d.iterdir()) == [LOCK]
+        unlock_file(d / LOCK, fd)
+    assert sorted(p.name for p in d.iterdir()) == []

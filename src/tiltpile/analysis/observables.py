@@ -14,7 +14,11 @@ whole ensemble.
 
 Cache format: one ``.npz`` per run (numpy only: no pyarrow / pytables here) holding each column
 as ``frames__<col>`` / ``clusters__<col>`` plus ``meta`` (JSON: source size, mtime, parameters,
-``columns``: the code digest of every column); written to a temporary name and renamed.
+``columns``: the code digest of every column); written to a temporary name, synced and renamed
+(:func:`tiltpile.outputs.replaced_whole`: a cache is replaced whole or not at all). One
+computation at a time per cache directory: ``compute_observables`` holds its
+``.observables.lock`` (:func:`tiltpile.outputs.output_lock`) while it computes, and a second one
+waits for it, saying so in one line on stderr, then computes only what is still missing.
 """
 
 from __future__ import annotations
@@ -30,12 +34,15 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from tiltpile.outputs import output_lock, replaced_whole
+
 from . import avalanche as _av
 from .tables import (CLUSTER_COLUMNS, CLUSTER_DOCS, DEFAULT_PARAMS, FRAME_COLUMNS,  # noqa: F401
                      FRAME_DOCS, RUN_TABLE_PARAMS, _params, failure_between, frame_contacts,
                      frame_observables, lost_between, run_observables, column_code)
 
 CACHE_DIRNAME = "observables"
+LOCK = ".observables.lock"  # in the cache directory, held while its caches are computed
 
 
 # ----------------------------------------------------------------------------------------------
@@ -90,14 +97,8 @@ def _write_cache(cache: Path, meta: dict, frames: pd.DataFrame, clusters: pd.Dat
         arrays[f"{prefix}__columns"] = np.array(list(df.columns))
         for c in df.columns:
             arrays[f"{prefix}__{c}"] = df[c].to_numpy()
-    tmp = cache.with_name(f".{cache.name}.{os.getpid()}.tmp")
-    try:
-        with open(tmp, "wb") as fh:
-            np.savez_compressed(fh, **arrays)
-        os.replace(tmp, cache)
-    except BaseException:  # a full disk, a kill: no half-written temporary stays behind
-        tmp.unlink(missing_ok=True)
-        raise
+    with replaced_whole(cache) as tmp, open(tmp, "wb") as fh:  # a full disk, a kill: no temporary left
+        np.savez_compressed(fh, **arrays)
 
 
 def _read_cache(cache: Path) -> tuple[pd.DataFrame, pd.DataFrame]:
@@ -138,7 +139,9 @@ def compute_observables(ensemble_dir, workers: int | None = None, progress: bool
     a column was added)
     (``force=True`` recomputes everything). Runs are processed in parallel by ``workers``
     processes (default: number of CPUs, at most the number of pending runs; 1 = in this
-    process), with a tqdm progress bar when ``progress``.
+    process), with a tqdm progress bar when ``progress``. While it computes it holds the cache
+    directory's lock (``LOCK``); another computation holding it is waited for (one line on
+    stderr), and the runs it computed are not computed again (but with ``force``).
 
     Returns a DataFrame with one row per run file: run_file, cache, status ("cached" or
     "computed"), seconds.
@@ -153,33 +156,47 @@ def compute_observables(ensemble_dir, workers: int | None = None, progress: bool
     pending = [f for f in files if force or not _is_fresh(f, p)]
     status = {str(f): ("cached", 0.0) for f in files}
     if pending:
-        nw = workers if workers is not None else (os.cpu_count() or 1)
-        nw = max(1, min(int(nw), len(pending)))
-        bar = None
-        if progress:
-            from tqdm.auto import tqdm
-            bar = tqdm(total=len(pending), desc="observables", unit="run")
-        try:
-            if nw == 1:
-                for f in pending:
-                    path, sec = _compute_one(str(f), p)
-                    status[path] = ("computed", sec)
-                    if bar is not None:
-                        bar.update(1)
-            else:
-                with ProcessPoolExecutor(max_workers=nw, mp_context=get_context("spawn")) as ex:
-                    futs = [ex.submit(_compute_one, str(f), p) for f in pending]
-                    for fut in as_completed(futs):
-                        path, sec = fut.result()
-                        status[path] = ("computed", sec)
-                        if bar is not None:
-                            bar.update(1)
-        finally:
-            if bar is not None:
-                bar.close()
+        # one computation at a time per cache: another one's is waited for, and what it
+        # computed is not computed again
+        with output_lock(_cache_path(files[0], p).parent, LOCK, "an observables computation",
+                         wait=True):
+            if not force:
+                pending = [f for f in pending if not _is_fresh(f, p)]
+            _compute(pending, p, workers, progress, status)
     return pd.DataFrame([{"run_file": f, "cache": str(_cache_path(Path(f), p)), "status": s,
                           "seconds": t}
                          for f, (s, t) in status.items()])
+
+
+def _compute(pending: list[Path], p: dict, workers: int | None, progress: bool, status: dict) -> None:
+    """Compute and cache the observables of the ``pending`` run files (``workers`` processes),
+    entering each one's (``"computed"``, seconds) in ``status``."""
+    if not pending:
+        return
+    nw = workers if workers is not None else (os.cpu_count() or 1)
+    nw = max(1, min(int(nw), len(pending)))
+    bar = None
+    if progress:
+        from tqdm.auto import tqdm
+        bar = tqdm(total=len(pending), desc="observables", unit="run")
+    try:
+        if nw == 1:
+            for f in pending:
+                path, sec = _compute_one(str(f), p)
+                status[path] = ("computed", sec)
+                if bar is not None:
+                    bar.update(1)
+        else:
+            with ProcessPoolExecutor(max_workers=nw, mp_context=get_context("spawn")) as ex:
+                futs = [ex.submit(_compute_one, str(f), p) for f in pending]
+                for fut in as_completed(futs):
+                    path, sec = fut.result()
+                    status[path] = ("computed", sec)
+                    if bar is not None:
+                        bar.update(1)
+    finally:
+        if bar is not None:
+            bar.close()
 
 
 def load_observables(ensemble_dir, compute_missing: bool = True, workers: int | None = None,

@@ -3,7 +3,8 @@
 Each module in this package registers its subcommand (``add_parser(subparsers)``) and
 implements it (``run(args) -> int``); library modules keep only their Python API. Every command
 validates its whole input first; on bad input it prints one line naming the problem and exits
-with status 2, having written nothing. Failures past validation are one line too, exit status 1:
+with status 2, having written nothing, as it does for an output another process is writing
+(``outputs.OutputBusy``: an ensemble's directory). Failures past validation are one line too, exit status 1:
 a damaged or unusable run file (``store.RunFileError``, also another process writing the same
 file), a failed write (a full disk: "no space left on device while writing FILE; rerun to
 resume"), a health stop (``SimulationError``), an OS error naming its path.
@@ -87,6 +88,7 @@ def main(argv: list[str] | None = None) -> int:
 
 
 def _run(args) -> int:
+    from tiltpile.outputs import OutputBusy
     from tiltpile.sim.protocol import SimulationError
     from tiltpile.store import MixedConfigError, RunBusyError, RunExistsError, RunFileError
 
@@ -96,7 +98,7 @@ def _run(args) -> int:
         devnull = os.open(os.devnull, os.O_WRONLY)
         os.dup2(devnull, sys.stdout.fileno())  # so that the interpreter's final flush stays quiet
         return 0
-    except (cfgmod.ConfigError, RunBusyError, RunExistsError, MixedConfigError) as e:  # refused: nothing was done
+    except (cfgmod.ConfigError, RunBusyError, RunExistsError, MixedConfigError, OutputBusy) as e:  # refused: nothing was done
         print(f"tiltpile {args.command}: error: {_one_line(e)}", file=sys.stderr)
         return 2
     except (RunFileError, SimulationError, OSError) as e:

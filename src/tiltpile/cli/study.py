@@ -296,6 +296,7 @@ def _run(args, offset, plans, data, figures) -> int:
     from tiltpile.analysis.observables import compute_observables
     from tiltpile.figures import study as st
     from tiltpile.figures.data import load
+    from tiltpile.outputs import replaced_whole
     from tiltpile.report.studies import render_study
 
     entries, ensembles = [], []
@@ -328,9 +329,8 @@ def _run(args, offset, plans, data, figures) -> int:
     paths = st.write(numbers, meta, figures)
     doc = json.loads(paths["json"].read_text())
     md = figures / "study.md"
-    tmp = md.with_name(".study.md.tmp")
-    tmp.write_text("\n".join(render_study(doc)).lstrip("\n") + "\n")
-    tmp.replace(md)
+    with replaced_whole(md) as tmp:
+        tmp.write_text("\n".join(render_study(doc)).lstrip("\n") + "\n")
     for label in numbers["labels"]:
         c = numbers["per_value"][label]["numbers"]
         print(f"{args.key} = {label}: first onset {c['theta_first_onset']['estimate']:.2f} deg, "

@@ -69,11 +69,13 @@ from tiltpile.analysis.observables import (compute_observables, load_run_observa
                                            table_params)
 from tiltpile.analysis.legacy_codes import recorded_column_code
 from tiltpile.analysis.tables import RUN_TABLE_PARAMS, column_code
+from tiltpile.outputs import output_lock
 from tiltpile.record import (FORMAT_VERSION, RecordError, read_meta, record_files, record_name,
                              write_record)
 
 from . import snapshot
 
+LOCK = ".record.lock"  # in a records directory, held while records are written into it
 # per-cluster columns a record leaves out: read by no figure (nor the report or the studies)
 DROPPED_CLUSTER_COLUMNS = ("phi_deg", "rg_long", "rg_short", "x_com", "y_com")
 # what the writer keeps, in the record's meta: a record written under another choice is stale
@@ -294,30 +296,43 @@ def write_records(data_dir, out_dir, workers: int | None = None, force: bool = F
     """Write the record of every run file of ``data_dir`` into ``out_dir`` whose record is missing
     or stale (all with ``force``), its tables at the analysis parameters ``params`` (None: the
     defaults; checked first, :func:`check_params`); observables not cached yet at those
-    parameters are computed first (``workers`` processes). Refuses (RecordError, one line, before
+    parameters are computed first (``workers`` processes). Holds ``out_dir``'s lock (``LOCK``)
+    while it writes: another writer of ``out_dir`` is waited for (one line on stderr), and the
+    records it wrote are not written again (but with ``force``). Refuses (RecordError, one line, before
     anything is computed or written) an ``out_dir`` holding records at other parameters: one
     parameter set per directory. Returns per run file: run_file, record, status ("written" or
     "up to date"), bytes (the record's size)."""
     out = Path(out_dir)
     p = check_params(params)
     refuse_foreign_params(out, p)
-    status = record_status(data_dir, out, p)
-    pending = [Path(f) for f, fresh in zip(status["run_file"], status["fresh"]) if force or not fresh]
+
+    def todo():
+        status = record_status(data_dir, out, p)
+        return status, [Path(f) for f, fresh in zip(status["run_file"], status["fresh"])
+                        if force or not fresh]
+
+    status, pending = todo()
     if pending:
-        compute_observables(data_dir, workers=workers, progress=False, **p)
-        bar = None
-        if progress:
-            from tqdm.auto import tqdm
-            bar = tqdm(total=len(pending), desc="records", unit="run")
-        try:
-            for f in pending:
-                write_record_of(f, out, *load_run_observables(f, compute_missing=False, **p),
-                                params=p)
+        # one writer at a time per records directory: another one is waited for, and the
+        # records it wrote are not written again
+        with output_lock(out, LOCK, "a records writer", wait=True):
+            refuse_foreign_params(out, p)
+            status, pending = todo()
+            if pending:
+                compute_observables(data_dir, workers=workers, progress=False, **p)
+            bar = None
+            if progress and pending:
+                from tqdm.auto import tqdm
+                bar = tqdm(total=len(pending), desc="records", unit="run")
+            try:
+                for f in pending:
+                    write_record_of(f, out, *load_run_observables(f, compute_missing=False, **p),
+                                    params=p)
+                    if bar is not None:
+                        bar.update(1)
+            finally:
                 if bar is not None:
-                    bar.update(1)
-        finally:
-            if bar is not None:
-                bar.close()
+                    bar.close()
     done = {str(f) for f in pending}
     rows = [{"run_file": f, "record": rec, "status": "written" if f in done else "up to date",
              "bytes": os.path.getsize(rec) if os.path.exists(rec) else np.nan}

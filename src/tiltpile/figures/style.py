@@ -15,6 +15,7 @@ from pathlib import Path
 
 import numpy as np
 
+from tiltpile.outputs import replaced_whole
 from tiltpile.record import jsonable as _record_jsonable
 
 OKABE_ITO = {
@@ -135,7 +136,8 @@ def jsonable(x):
 
 
 def save(fig, name: str, numbers: dict, figures_dir, meta: dict | None = None) -> dict[str, Path]:
-    """Write ``figures_dir/name.pdf``, ``.png`` and ``.json`` (each to a temporary name, then renamed).
+    """Write ``figures_dir/name.pdf``, ``.png`` and ``.json`` (each to a temporary name of this
+    process, synced, then renamed: :func:`tiltpile.outputs.replaced_whole`).
 
     The JSON holds ``{"figure": name, **meta, "numbers": numbers}`` with numpy scalars and arrays
     turned into plain numbers and lists, NaN and inf written as null. Returns the three paths.
@@ -144,24 +146,18 @@ def save(fig, name: str, numbers: dict, figures_dir, meta: dict | None = None) -
     out.mkdir(parents=True, exist_ok=True)
     paths = {ext: out / f"{name}.{ext}" for ext in ("pdf", "png", "json")}
     for ext in ("pdf", "png"):
-        tmp = paths[ext].with_name(f".{name}.tmp.{ext}")
         kw = {"metadata": {"CreationDate": None}} if ext == "pdf" else {"metadata": {"Software": None}}
-        fig.savefig(tmp, format=ext, **kw)
-        os.replace(tmp, paths[ext])
+        with replaced_whole(paths[ext]) as tmp:
+            fig.savefig(tmp, format=ext, **kw)
     write_json(paths["json"], {"figure": name, **jsonable(meta or {}), "numbers": jsonable(numbers)})
     return paths
 
 
 def write_json(path, doc) -> Path:
     """Write ``doc`` (plain JSON types) to ``path`` as the figures' JSON are written (indent 1,
-    keys in their order, a final newline): to a temporary name of this process, then renamed, so
-    that the file is replaced whole or not at all."""
+    keys in their order, a final newline): to a temporary name of this process, synced, then
+    renamed, so that the file is replaced whole or not at all."""
     path = Path(path)
-    tmp = path.with_name(f".{path.name}.{os.getpid()}.tmp")
-    try:
+    with replaced_whole(path) as tmp:
         tmp.write_text(json.dumps(doc, indent=1, sort_keys=False) + "\n")
-        os.replace(tmp, path)
-    except BaseException:
-        tmp.unlink(missing_ok=True)
-        raise
     return path

@@ -25,13 +25,13 @@ from __future__ import annotations
 
 import json
 import math
-import os
 import warnings
 from pathlib import Path
 
 import numpy as np
 
 from tiltpile.analysis import zcount as zc
+from tiltpile.outputs import replaced_whole
 
 from . import style
 
@@ -291,18 +291,12 @@ def study(dirs, every: int = 1, workers: int | None = None, progress: bool = Tru
 
 def write_study(doc: dict, prefix) -> tuple[Path, Path]:
     """Write ``PREFIX.json`` and ``PREFIX.png`` of a :func:`study` document: both to temporary
-    names first, renamed only when both are complete (on any error neither is left behind)."""
+    names first, synced and renamed only when both are complete (on any error neither temporary
+    is left behind; :func:`tiltpile.outputs.replaced_whole`)."""
     prefix = Path(prefix)
     prefix.parent.mkdir(parents=True, exist_ok=True)
     out_json, out_png = prefix.with_name(prefix.name + ".json"), prefix.with_name(prefix.name + ".png")
-    tmp_json = prefix.with_name(f".{prefix.name}.json.{os.getpid()}.tmp")
-    tmp_png = prefix.with_name(f".{prefix.name}.png.{os.getpid()}.tmp")
-    try:
+    with replaced_whole(out_json) as tmp_json, replaced_whole(out_png) as tmp_png:
         tmp_json.write_text(json.dumps(style.jsonable(doc), indent=1) + "\n")
         chart(doc["ensembles"], tmp_png)
-        os.replace(tmp_png, out_png)
-        os.replace(tmp_json, out_json)
-    finally:
-        tmp_json.unlink(missing_ok=True)
-        tmp_png.unlink(missing_ok=True)
     return out_json, out_png

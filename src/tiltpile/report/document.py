@@ -13,6 +13,7 @@ import json
 from pathlib import Path
 
 from tiltpile import config as cfgmod
+from tiltpile.outputs import replaced_whole
 
 from .claims import CLAIMS, RULES
 from . import definitions as _definitions
@@ -222,7 +223,8 @@ def _changes_with(kinds: tuple) -> str:
 
 
 def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
-    """Render the report for ``figures_dir`` into ``out`` (temporary file, then rename)."""
+    """Render the report for ``figures_dir`` into ``out`` (a temporary file of this process, synced,
+    then renamed: :func:`tiltpile.outputs.replaced_whole`)."""
     figs = load_figures(figures_dir)
     if not figs:
         raise FileNotFoundError(f"no fig*.json in {figures_dir}: run the figure notebooks first")
@@ -237,9 +239,8 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
                   + _definitions.render(studies.get("definitions"), claims) + engines, studies)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    tmp = out.with_name(f".{out.name}.tmp")
-    tmp.write_text(text)
-    tmp.replace(out)
+    with replaced_whole(out) as tmp:
+        tmp.write_text(text)
     return out
 
 

@@ -1,5 +1,5 @@
 """The files around a run file: ``NAME.part`` (written), ``NAME.ckpt`` (its checkpoint) and
-``NAME.lock`` (the writer lock, an exclusive ``flock``); syncing to disk, and one-line messages
+``NAME.lock`` (the writer lock, an exclusive ``flock``: :func:`tiltpile.outputs.lock_file`); syncing to disk, and one-line messages
 for failed writes."""
 
 from __future__ import annotations
@@ -7,10 +7,10 @@ from __future__ import annotations
 import contextlib
 import errno
 import os
-import socket
 import threading
 from pathlib import Path
 
+from tiltpile.outputs import LockHeld, lock_file, unlock_file
 from tiltpile.store.errors import RunBusyError, RunFileError, RunWriteError
 
 
@@ -64,45 +64,22 @@ def writer_lock(path: str | Path):
 
 
 def acquire_lock(path: str | Path) -> None:
-    import fcntl
-
     lock = lock_path(path)
     key = str(lock.absolute())
     with _held_lock:
         if key in _held:
             _held[key][1] += 1
             return
-        while True:
-            try:
-                fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
-            except OSError as e:
-                raise RunWriteError(f"cannot write {Path(path)}: {_describe_os_error(e)} "
-                                    f"(creating {lock})") from None
-            try:
-                fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-            except OSError:
-                try:
-                    holder = os.pread(fd, 200, 0).decode(errors="replace").strip()
-                except OSError:
-                    holder = ""
-                os.close(fd)
-                raise RunBusyError(
-                    f"{part_path(path)} is being written by another process"
-                    f"{' (' + holder + ')' if holder else ''}; wait for it to finish or use another "
-                    "output file (nothing was changed)") from None
-            # the previous holder may have removed the file between our open and our lock
-            try:
-                same = os.path.samestat(os.fstat(fd), os.stat(lock))
-            except FileNotFoundError:
-                same = False
-            if same:
-                break
-            os.close(fd)
         try:
-            os.ftruncate(fd, 0)
-            os.pwrite(fd, f"{socket.gethostname()} pid {os.getpid()}\n".encode(), 0)
-        except OSError:
-            pass  # the lock holds without the note
+            fd = lock_file(lock)
+        except LockHeld as e:
+            raise RunBusyError(
+                f"{part_path(path)} is being written by another process"
+                f"{' (' + e.holder + ')' if e.holder else ''}; wait for it to finish or use another "
+                "output file (nothing was changed)") from None
+        except OSError as e:
+            raise RunWriteError(f"cannot write {Path(path)}: {_describe_os_error(e)} "
+                                f"(creating {lock})") from None
         _held[key] = [fd, 1]
 
 
@@ -117,9 +94,7 @@ def release_lock(path: str | Path) -> None:
         if entry[1] > 0:
             return
         del _held[key]
-        with contextlib.suppress(OSError):
-            lock.unlink()  # while still holding it: a waiting process sees the file gone and retries
-        os.close(entry[0])
+        unlock_file(lock, entry[0])  # removed while still held: a waiting process retries
 
 
 def part_path(path: str | Path) -> Path:

@@ -136,10 +136,12 @@ def plot(series: pd.DataFrame, facts: dict, onsets: pd.DataFrame | None = None):
 
 
 def save(fig, path) -> Path:
-    """Write the figure as PNG to a temporary name, then rename."""
+    """Write the figure as PNG to a temporary name of this process, synced, then renamed
+    (:func:`tiltpile.outputs.replaced_whole`)."""
+    from tiltpile.outputs import replaced_whole
+
     path = Path(path)
     path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.stem}.tmp.png")
-    fig.savefig(tmp, dpi=120, metadata={"Software": None})
-    tmp.replace(path)
+    with replaced_whole(path) as tmp:
+        fig.savefig(tmp, format="png", dpi=120, metadata={"Software": None})
     return path
