@@ -18,11 +18,15 @@ AGREES, DISAGREES, INCONCLUSIVE, MISSING = "agrees", "disagrees", "inconclusive"
 
 @dataclass(frozen=True)
 class Claim:
+    """One claim, declared once: its judge and its rule read the same numbers (the paper's from
+    :mod:`tiltpile.paper_values`, a tolerance of ours beside the judge), the rule's text formatted
+    from them."""
     key: str
     text: str              # the paper's claim, in our words
     paper: str             # the paper's value
     figure: str            # figure JSON stem the numbers come from
     judge: Callable[[dict], tuple[str, str, str]]   # numbers -> (ours, verdict, note)
+    rule: Rule | None = None   # what the paper says and what the judge tests
 
 
 def approx(x: float, digits: int) -> str:

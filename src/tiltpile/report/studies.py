@@ -9,6 +9,8 @@ import json
 import math
 from pathlib import Path
 
+from tiltpile.paper_values import AVALANCHE_DEG, QUIET_DEG, REPOSE_DEG, Z_MEAN
+
 from .judging import _f, _num
 from .scales import scale_dirs
 
@@ -25,7 +27,7 @@ def load_studies(figures_dir) -> dict[str, dict]:
             if (root / f).exists()}
 
 
-QUIET_WINDOW_DEG = 14.4  # the paper's Fig. 5 shows clusters this far before an onset
+QUIET_WINDOW_DEG = QUIET_DEG.value  # the paper's Fig. 5 shows clusters this far before an onset
 
 
 def _theta_m_cites(studies: dict) -> str:
@@ -40,7 +42,7 @@ def _theta_m_cites(studies: dict) -> str:
         e = ens[label]
         m, lo, hi = (_num(e.get(f"theta_first_onset_{x}")) for x in ("mean", "ci_low", "ci_high"))
         band = f" [{lo:.1f}, {hi:.1f}]" if math.isfinite(lo) and math.isfinite(hi) else ""
-        return (f"{label}: {_quiet_past(e)} of {e['n_runs']} runs quiet to 14.4 deg, first onset "
+        return (f"{label}: {_quiet_past(e)} of {e['n_runs']} runs quiet to {QUIET_WINDOW_DEG:g} deg, first onset "
                 f"{_f(m, '.1f')}{band} deg")
 
     others = [lab for lab in ens if lab != n["reference"]]
@@ -56,20 +58,20 @@ def _z_mean_cites(studies: dict) -> str:
     doc = studies.get("zcount")
     if not doc or not doc.get("ensembles"):
         return ""
-    parts = []
+    parts, z_paper = [], f"{Z_MEAN.value:g}"
     for label, e in doc["ensembles"].items():
         z = _num((e.get("table", {}).get(e.get("analysis_rule"), {}) or {}).get("z"))
         reach = e.get("reaches_paper_z") or {}
         gap = ((reach.get("first_gap") or {}).get("walls=in rattlers=out grains=bulk") or {})
         g = _num(gap.get("interpolated"))
-        parts.append(f"{label} {_f(z, '.3f')}, 3.5 at gap <= {_f(g, '.2g')} d" if math.isfinite(g)
-                     else f"{label} {_f(z, '.3f')}, 3.5 at no gap up to the alert distance")
+        parts.append(f"{label} {_f(z, '.3f')}, {z_paper} at gap <= {_f(g, '.2g')} d" if math.isfinite(g)
+                     else f"{label} {_f(z, '.3f')}, {z_paper} at no gap up to the alert distance")
     force = any((e.get("reaches_paper_z") or {}).get("force_rule_reaches")
                 for e in doc["ensembles"].values())
     return ("By counting rule (`tiltpile zcount`, figures/zcount.png): no force threshold reaches "
-            "3.5, " if not force else "By counting rule (`tiltpile zcount`, figures/zcount.png): ") + (
+            f"{z_paper}, " if not force else "By counting rule (`tiltpile zcount`, figures/zcount.png): ") + (
             "counting every pair of bulk grains closer than a surface gap g does: "
-            + "; ".join(parts) + ". The paper's ~3.5 is then what a contact list holding the "
+            + "; ".join(parts) + f". The paper's ~{z_paper} is then what a contact list holding the "
             "near contacts counts, not the force-bearing network.")
 
 
@@ -125,7 +127,8 @@ def render_preparation(figures_dir) -> list[str]:
              "`protocol.cycles` and `protocol.theta_rev_deg` for Deboeuf et al.'s two cycles past "
              f"theta_rev) against fresh ones ({n['reference']}, the reference); mean [95% bootstrap "
              "interval over runs]. The paper's Fig. 5 needs runs whose first onset comes after "
-             f"{QUIET_WINDOW_DEG} deg; Deboeuf et al. give theta_r ~ 15 deg and theta_a ~ 21 deg "
+             f"{QUIET_WINDOW_DEG:g} deg; Deboeuf et al. give theta_r ~ {REPOSE_DEG.value:g} deg and "
+             f"theta_a ~ {AVALANCHE_DEG.value:g} deg "
              "for the paper's piles.", "",
              f"Slides in the ramp are detected at {threshold} "
              "for every ensemble. The slide and repose angles come from `tiltpile repose`, which "
@@ -134,7 +137,7 @@ def render_preparation(figures_dir) -> list[str]:
              "of the free surface to the horizontal (lower: the slide has piled grains downhill). The memory: the first frame losing more than 0.5% of its "
              "contacts (irreversible change, however small) and the first 2% onset over the "
              "history's amplitude theta_rev." + records_note, "",
-             "| preparation | runs | first 2% onset (deg) | runs quiet past 14.4 deg "
+             f"| preparation | runs | first 2% onset (deg) | runs quiet past {QUIET_WINDOW_DEG:g} deg "
              "| first slide in the ramp (deg; runs) | slide angle (deg; repose) "
              "| repose angle: box (deg) | repose angle: surface (deg) "
              "| first change > 0.5% (deg) | first onset / theta_rev "
@@ -169,11 +172,11 @@ def render_preparation(figures_dir) -> list[str]:
     ref = n["ensembles"][n["reference"]]
     lines.append("")
     if best_n > 0:
-        lines.append(f"**{best}** brings the most runs past the paper's {QUIET_WINDOW_DEG} deg before their "
+        lines.append(f"**{best}** brings the most runs past the paper's {QUIET_WINDOW_DEG:g} deg before their "
                      f"first onset ({best_n} of {n['ensembles'][best]['n_runs']}; fresh piles: "
                      f"{_quiet_past(ref)}).")
     else:
-        lines.append(f"No preparation studied brings a run past {QUIET_WINDOW_DEG} deg before its first "
+        lines.append(f"No preparation studied brings a run past {QUIET_WINDOW_DEG:g} deg before its first "
                      "onset; the differences from the fresh piles (first onset, onsets below the "
                      "preparation's amplitude) show how far each goes.")
     for label, dd in n.get("differences", {}).items():
