@@ -14,8 +14,8 @@ import math
 from tiltpile.paper_values import (AVALANCHE_DEG, DELTA, ENHANCEMENT, FIG5_WINDOWS_DEG,
                                    ONSET_SHIFT_FRAMES, ORIENTATION_DEG, QUIET_DEG, SLIDE_KE, Z_MEAN)
 
-from .judging import (AGREES, DISAGREES, INCONCLUSIVE, SEPARATION, Claim, Rule, _ci, _f, _num,
-                      _overlaps, _verdict, _wrong_side)
+from .judging import (AGREES, DISAGREES, INCONCLUSIVE, SEPARATION, Claim, Rule, num, overlaps,
+                      show, show_ci, verdict_of, wrong_side)
 
 
 def _sci(x: float) -> str:
@@ -32,10 +32,10 @@ CLAIMS_123: list[Claim] = []      # in report order: each appended right after i
 
 def _theta_m(n: dict):
     q = QUIET_DEG.value
-    mx = _num(n.get("theta_m_max"))
+    mx = num(n.get("theta_m_max"))
     k = n.get("n_runs_with_onset")
-    ours = (f"first onset {_ci(n, 'theta_m', '.1f', 'theta_m_mean')} deg (mean [95% CI], {k} runs; "
-            f"range {_f(_num(n.get('theta_m_min')), '.1f')}-{_f(mx, '.1f')})")
+    ours = (f"first onset {show_ci(n, 'theta_m', '.1f', 'theta_m_mean')} deg (mean [95% CI], {k} runs; "
+            f"range {show(num(n.get('theta_m_min')), '.1f')}-{show(mx, '.1f')})")
     ok = mx >= q
     legs = ((n.get("history") or {}).get("pretilt_deg"))
     why = ("Our piles are freshly deposited; the paper's had been tilted back and forth before, "
@@ -45,19 +45,19 @@ def _theta_m(n: dict):
     note = "" if ok or not math.isfinite(mx) else (
         f"no run stays quiet up to {q:g} deg: the paper's Fig. 5 has quiet frames {q:g} deg before an "
         f"onset, so some of its piles had no 2% event before {q:g} deg; ours all have one by "
-        f"{_f(mx, '.1f')} deg. These first onsets are precursor rearrangements"
+        f"{show(mx, '.1f')} deg. These first onsets are precursor rearrangements"
         f"{_ke_range(n.get('ke_first_onset_per_run'))}; the large slide comes later (next claim). "
         + why).strip()
-    return ours, _verdict(ok, math.isfinite(mx)), note
+    return ours, verdict_of(ok, math.isfinite(mx)), note
 
 
 def _ke_range(per_run) -> str:
     """' (kinetic energy per grain a to b at the first onsets)' from fig2's
     ke_first_onset_per_run, or '' where fig2 did not write it."""
-    ke = sorted(v for v in (_num(x) for x in (per_run or [])) if math.isfinite(v) and v > 0)
+    ke = sorted(v for v in (num(x) for x in (per_run or [])) if math.isfinite(v) and v > 0)
     if not ke:
         return ""
-    span = _f(ke[0], ".0e") if len(ke) == 1 else f"{_f(ke[0], '.0e')} to {_f(ke[-1], '.0e')}"
+    span = show(ke[0], ".0e") if len(ke) == 1 else f"{show(ke[0], '.0e')} to {show(ke[-1], '.0e')}"
     return f" (kinetic energy per grain {span} at the first onsets)"
 
 
@@ -76,27 +76,27 @@ def _theta_slide(n: dict):
     (fig2), the same at every scale (the first sustained flow above the Fig. 2a threshold is
     reported beside it in the per-scale table)."""
     a = AVALANCHE_DEG
-    per = [_num(v) for v in (n.get("theta_avalanche_per_run") or [])]
+    per = [num(v) for v in (n.get("theta_avalanche_per_run") or [])]
     k = sum(math.isfinite(v) for v in per)
     m = len(per)
-    end = _num(n.get("theta_end_min"))
+    end = num(n.get("theta_end_min"))
     fin = sorted(v for v in per if math.isfinite(v))
     if m and k > m / 2:
         # the median is known when more than half of the runs slide before the end of the tilt
         vals = fin + [math.inf] * (m - k)
         med = vals[(m - 1) // 2] if m % 2 else 0.5 * (vals[m // 2 - 1] + vals[m // 2])
-        med_txt, measurable = _f(med, ".1f"), math.isfinite(med)
+        med_txt, measurable = show(med, ".1f"), math.isfinite(med)
         ok = abs(med - a.value) <= a.tol
     else:
         med = math.nan
-        med_txt = f"> {_f(end, '.1f')}" if m else "n/a"
+        med_txt = f"> {show(end, '.1f')}" if m else "n/a"
         measurable = m > 0 and end > a.hi        # a median beyond the band is known to disagree
         ok = False
     ours = (f"first large slide: median {med_txt} deg; {k} of {m} runs slide before the end of "
-            f"their tilt (the earliest end: {_f(end, '.1f')} deg)" + (f", at {', '.join(_f(v, '.2f') for v in fin)} deg"
+            f"their tilt (the earliest end: {show(end, '.1f')} deg)" + (f", at {', '.join(show(v, '.2f') for v in fin)} deg"
                                                if fin else "")
-            + f" (KE per grain > {_f(_num(n.get('avalanche_ke')), '.0e')} over "
-            f">= {_f(_num(n.get('slide_sustain_deg')), 'g')} deg)")
+            + f" (KE per grain > {show(num(n.get('avalanche_ke')), '.0e')} over "
+            f">= {show(num(n.get('slide_sustain_deg')), 'g')} deg)")
     note = ""
     if not measurable:
         note = ("fewer than half of the runs slide before the end of the tilt, so the median slide "
@@ -109,7 +109,7 @@ def _theta_slide(n: dict):
         if (n.get("history") or {}).get("pretilt_deg") == []:
             note += (" Our piles are freshly deposited; Deboeuf et al. measured theirs after two "
                      "cycles past theta_rev (the preparation study compares the two histories).")
-    return ours, _verdict(ok, measurable), note
+    return ours, verdict_of(ok, measurable), note
 
 
 CLAIMS_123.append(Claim(
@@ -131,16 +131,16 @@ CLAIMS_123.append(Claim(
 
 
 def _z_mean(n: dict):
-    lo, hi = _num(n.get("z_quiet_run_mean_ci_low")), _num(n.get("z_quiet_run_mean_ci_high"))
-    z = _num(n.get("z_quiet_run_mean"))
-    ok = _overlaps(lo, hi, Z_MEAN.lo, Z_MEAN.hi)
+    lo, hi = num(n.get("z_quiet_run_mean_ci_low")), num(n.get("z_quiet_run_mean_ci_high"))
+    z = num(n.get("z_quiet_run_mean"))
+    ok = overlaps(lo, hi, Z_MEAN.lo, Z_MEAN.hi)
     note = "" if ok or not math.isfinite(z) else (
         "we count force-bearing contacts (f_n > 0) of bulk grains without rattlers (top and bottom "
         "layers removed); the paper does not say which contacts its <z> counts. A Hookean DEM "
         "counting overlaps gives 3.32-3.34 on the same piles (DESIGN.md). Our piles are also deposited differently (loose random fill, "
         "settling under gravity at mu = 0.5), which sets z.")
-    return (f"{_ci(n, 'z_quiet_run_mean', '.3f')} (quiet frames, bulk without rattlers)",
-            _verdict(ok, math.isfinite(lo)), note)
+    return (f"{show_ci(n, 'z_quiet_run_mean', '.3f')} (quiet frames, bulk without rattlers)",
+            verdict_of(ok, math.isfinite(lo)), note)
 
 
 CLAIMS_123.append(Claim(
@@ -158,15 +158,15 @@ BIC_GAIN, ASHMAN_D = 10, 2
 
 def _two_populations(n: dict):
     b = n.get("lost_bimodality") or {}
-    d, bic, depth = _num(b.get("ashman_d")), _num(b.get("delta_bic")), _num(b.get("valley_depth"))
-    ours = (f"Ashman D = {_f(d, '.1f')}, valley depth {_f(depth, '.2f')} at "
-            f"{_f(_num(b.get('valley')), '.2%')} lost, BIC(1) - BIC(2) = {_f(bic, '.0f')}; "
-            f"{_f(_num(n.get('lost_zero_fraction')), '.0%')} of frames lose no contact")
+    d, bic, depth = num(b.get("ashman_d")), num(b.get("delta_bic")), num(b.get("valley_depth"))
+    ours = (f"Ashman D = {show(d, '.1f')}, valley depth {show(depth, '.2f')} at "
+            f"{show(num(b.get('valley')), '.2%')} lost, BIC(1) - BIC(2) = {show(bic, '.0f')}; "
+            f"{show(num(n.get('lost_zero_fraction')), '.0%')} of frames lose no contact")
     ok = d > ASHMAN_D and bic > BIC_GAIN
     note = "" if ok or not math.isfinite(d) else (
         "the lost fractions of the frames losing at least one contact are not two separated "
         "populations (one skewed population, or two overlapping ones).")
-    return ours, _verdict(ok, math.isfinite(d)), note
+    return ours, verdict_of(ok, math.isfinite(d)), note
 
 
 CLAIMS_123.append(Claim(
@@ -184,34 +184,34 @@ def _cutoff_in_gap(n: dict):
     b = n.get("lost_bimodality") or {}
     between = b.get("cutoff_between_means")
     means = b.get("means") or [None, None]
-    cutoff = _num(n.get("cutoff"))
-    above, below = _wrong_side(b, cutoff)
-    ms = ", ".join(_f(10 ** _num(m), ".2%") if m is not None else "n/a" for m in means)
-    ours = (f"population means at {ms} lost; the {_f(cutoff, '.0%')} cutoff leaves "
-            f"{_f(above, '.0%')} of the lower population above it and {_f(below, '.0%')} of the "
-            f"upper one below it (density there {_f(_num(b.get('cutoff_density_ratio')), '.2f')} "
+    cutoff = num(n.get("cutoff"))
+    above, below = wrong_side(b, cutoff)
+    ms = ", ".join(show(10 ** num(m), ".2%") if m is not None else "n/a" for m in means)
+    ours = (f"population means at {ms} lost; the {show(cutoff, '.0%')} cutoff leaves "
+            f"{show(above, '.0%')} of the lower population above it and {show(below, '.0%')} of the "
+            f"upper one below it (density there {show(num(b.get('cutoff_density_ratio')), '.2f')} "
             "of the lower peak)")
     measurable = math.isfinite(above) and math.isfinite(below)
     ok = measurable and above <= SEPARATION and below <= SEPARATION
     note = "" if ok or not measurable else (
-        f"the gap between our two populations is at {_f(_num(b.get('valley')), '.2%')} lost, and "
+        f"the gap between our two populations is at {show(num(b.get('valley')), '.2%')} lost, and "
         "the 2% cutoff is not in it: "
         + ("it lies beyond both population means, on the far side of the upper one (at "
            f"{_contacts_at_cutoff(n)}, and precursor rearrangements of the top layers lose that "
            "many)." if not between else
            f"it lies between the means but within one standard deviation of the "
            f"{'upper' if below > above else 'lower'} population's mean, so it splits that population "
-           f"({_f(max(above, below), '.0%')} of its frames on the other side) instead of "
+           f"({show(max(above, below), '.0%')} of its frames on the other side) instead of "
            "separating the two."))
-    return ours, _verdict(ok, measurable), note
+    return ours, verdict_of(ok, measurable), note
 
 
 def _contacts_at_cutoff(n: dict) -> str:
     """'N grains the 2% cutoff is ~k contacts' (k from the mean active contacts of a frame, fig2's
     n_active_mean; without it, the cutoff as a share of the contacts)."""
-    cutoff, active = _num(n.get("cutoff")), _num(n.get("n_active_mean"))
-    head = f"{n.get('n_grains')} grains the {_f(cutoff, '.0%')} cutoff"
-    return (f"{head} is ~{_f(cutoff * active, '.0f')} contacts" if math.isfinite(active)
+    cutoff, active = num(n.get("cutoff")), num(n.get("n_active_mean"))
+    head = f"{n.get('n_grains')} grains the {show(cutoff, '.0%')} cutoff"
+    return (f"{head} is ~{show(cutoff * active, '.0f')} contacts" if math.isfinite(active)
             else f"{head} is that share of the active contacts")
 
 
@@ -227,19 +227,19 @@ CLAIMS_123.append(Claim(
 
 
 def _robust(n: dict):
-    raw, unmatched = n.get("onset_shift_median_frames"), _num(n.get("onset_unmatched_fraction"))
+    raw, unmatched = n.get("onset_shift_median_frames"), num(n.get("onset_unmatched_fraction"))
     # null with onsets compared: most onsets have no partner (a move larger than 10 frames)
-    med = math.inf if raw is None and math.isfinite(unmatched) else _num(raw)
-    f = _num(n.get("onset_shift_max_frames"))
-    ours = (f"median shift {_f(med, '.0f') if math.isfinite(med) else '> 10'} frames (max "
-            f"{_f(f, '.0f')}, {_f(_num(n.get('onset_shift_max_deg')), '.2f')} deg); "
-            f"{_f(unmatched, '.0%')} of onsets have no partner within 10 frames at another cutoff")
+    med = math.inf if raw is None and math.isfinite(unmatched) else num(raw)
+    f = num(n.get("onset_shift_max_frames"))
+    ours = (f"median shift {show(med, '.0f') if math.isfinite(med) else '> 10'} frames (max "
+            f"{show(f, '.0f')}, {show(num(n.get('onset_shift_max_deg')), '.2f')} deg); "
+            f"{show(unmatched, '.0%')} of onsets have no partner within 10 frames at another cutoff")
     ok = med <= ONSET_SHIFT_FRAMES.value
     note = "" if ok or math.isnan(med) else (
         "the lost fraction of our quiet frames is not far below 2% (Fig. 2b: the upper population "
         "straddles the cutoff), so 1% and 4% cut through a population rather than through a gap, "
         "and onsets appear, vanish or move by several frames.")
-    return ours, _verdict(ok, not math.isnan(med)), note
+    return ours, verdict_of(ok, not math.isnan(med)), note
 
 
 CLAIMS_123.append(Claim(
@@ -265,11 +265,11 @@ def _crossing(n: dict):
     avalanche": quiet frames above the line (up to a frame-resolution allowance, and above it
     just before an onset) and avalanching frames across it (Fig. 2d: the avalanche occupies a
     region well separated from the quiet one, on the other side of the line)."""
-    lo = _num(n.get("quiet_below_run_mean_ci_low"))
-    a = _num(n.get("avalanche_below_fraction"))
-    pre = _num(n.get("dz_gen_pre_onset"))
-    ours = (f"{_ci(n, 'quiet_below_run_mean', '.1%')} of quiet and {_f(a, '.0%')} of avalanching "
-            f"frames below the line; mean delta z_gen just before an onset {_f(pre, '+.3f')}")
+    lo = num(n.get("quiet_below_run_mean_ci_low"))
+    a = num(n.get("avalanche_below_fraction"))
+    pre = num(n.get("dz_gen_pre_onset"))
+    ours = (f"{show_ci(n, 'quiet_below_run_mean', '.1%')} of quiet and {show(a, '.0%')} of avalanching "
+            f"frames below the line; mean delta z_gen just before an onset {show(pre, '+.3f')}")
     quiet_measured = math.isfinite(lo) and math.isfinite(pre)
     quiet_ok, across = lo <= QUIET_BELOW_ALLOWED and pre > 0, a >= AVALANCHE_ACROSS
     notes = []
@@ -281,13 +281,13 @@ def _crossing(n: dict):
             "average it stays above it until the onset; fig1 shows the mean quiet path.")
     if math.isfinite(a) and not across:
         notes.append(
-            f"only {_f(a, '.0%')} of our avalanching frames are below the marginal line, fewer "
+            f"only {show(a, '.0%')} of our avalanching frames are below the marginal line, fewer "
             f"than {AVALANCHE_ACROSS_WORDS}: most of the avalanching frames stay on the stable "
             "side, so the crossing after the onset that the paper's Fig. 2d shows (the avalanche "
             "in a region of its own, across the line) does not happen in most of them.")
     if notes:
         return ours, DISAGREES, " ".join(notes)
-    return ours, _verdict(True, quiet_measured and math.isfinite(a)), ""
+    return ours, verdict_of(True, quiet_measured and math.isfinite(a)), ""
 
 
 CLAIMS_123.append(Claim(
@@ -305,9 +305,9 @@ CLAIMS_123.append(Claim(
 
 def _orientation(n: dict):
     o = ORIENTATION_DEG
-    m, k = _num(n.get("orientation_mean_deg")), n.get("n_clusters_orientation")
-    ours = f"{_f(m, '.0f')} deg (median {_f(_num(n.get('orientation_median_deg')), '.0f')}; {k} clusters of >= 5 grains)"
-    return ours, _verdict(abs(m - o.value) <= o.tol, math.isfinite(m)), ""
+    m, k = num(n.get("orientation_mean_deg")), n.get("n_clusters_orientation")
+    ours = f"{show(m, '.0f')} deg (median {show(num(n.get('orientation_median_deg')), '.0f')}; {k} clusters of >= 5 grains)"
+    return ours, verdict_of(abs(m - o.value) <= o.tol, math.isfinite(m)), ""
 
 
 CLAIMS_123.append(Claim(
@@ -324,9 +324,9 @@ ENRICHMENT_MIN = 1.5
 
 
 def _failure_in_clusters(n: dict):
-    x, r = _num(n.get("failing_in_cluster_excess")), _num(n.get("failing_in_cluster_enrichment"))
-    ours = f"{_f(x, '+.2f')} above the uncorrelated line ({_f(r, '.1f')}x more failure in clusters)"
-    return ours, _verdict(x > 0 and r >= ENRICHMENT_MIN, math.isfinite(x) and math.isfinite(r)), ""
+    x, r = num(n.get("failing_in_cluster_excess")), num(n.get("failing_in_cluster_enrichment"))
+    ours = f"{show(x, '+.2f')} above the uncorrelated line ({show(r, '.1f')}x more failure in clusters)"
+    return ours, verdict_of(x > 0 and r >= ENRICHMENT_MIN, math.isfinite(x) and math.isfinite(r)), ""
 
 
 CLAIMS_123.append(Claim(
@@ -339,16 +339,16 @@ CLAIMS_123.append(Claim(
 
 
 def _c_peak(n: dict):
-    t, c0 = n.get("C_argmax_tau"), _num(n.get("C_tau0"))
-    cmax = _num(n.get("C_max"))
-    ours = f"max of C at tau = {t} ({_f(cmax, '.2f')}), C(0) = {_f(c0, '.2f')}"
+    t, c0 = n.get("C_argmax_tau"), num(n.get("C_tau0"))
+    cmax = num(n.get("C_max"))
+    ours = f"max of C at tau = {t} ({show(cmax, '.2f')}), C(0) = {show(c0, '.2f')}"
     note = "" if t == 0 or t is None else (
         f"our maximum sits {abs(t)} frame(s) {'before' if t < 0 else 'after'} tau = 0 and exceeds "
-        f"C(0) by {_f(cmax - c0, '.2f')}: large clusters and failure move together within about a "
+        f"C(0) by {show(cmax - c0, '.2f')}: large clusters and failure move together within about a "
         "frame. Our N^f(k) counts the contacts lost from frame k to k + 1; counted from k - 1 to "
         "k instead (the paper does not say which), the same data put the maximum at tau = "
         f"{t + 1}. The difference from the paper is within this one-frame convention.")
-    return ours, _verdict(t == 0, t is not None and math.isfinite(c0)), note
+    return ours, verdict_of(t == 0, t is not None and math.isfinite(c0)), note
 
 
 CLAIMS_123.append(Claim(
@@ -369,17 +369,17 @@ MIN_PEAKS = 10      # fewest peaks (or pairs of quiet frames for "c0") the enhan
 def _enhancement(n: dict):
     en, forty = ENHANCEMENT, f"{ENHANCEMENT.value:+.0%}"
     rule = n.get("peak_rule") or PEAK_DEFAULT
-    e, k = _num(n.get("enhancement_tau0")), n.get("n_peaks")
+    e, k = num(n.get("enhancement_tau0")), n.get("n_peaks")
     ok = en.lo <= e <= en.hi
     others = ", ".join(f'"{r}"' for r in (*PEAKS, "c0") if r != rule)
     if rule == "c0":
-        ours = f"C(0) = {_f(e, '.2f')} read as the {forty} ({k} pairs of quiet frames)"
+        ours = f"C(0) = {show(e, '.2f')} read as the {forty} ({k} pairs of quiet frames)"
         note = "" if ok or not math.isfinite(e) else (
             f"read as C(0) (fig3's peak_rule \"c0\": the paper's {forty} as the correlation at "
             f"tau = 0, not as a rate after peaks), our C(0) is outside {en.lo:g}-{en.hi:g}; the "
             f"other readings are fig3's peak_rule {others}.")
-        return ours, _verdict(ok, math.isfinite(e) and (k or 0) >= MIN_PEAKS), note
-    ours = f"{_f(e, '+.0%')} right after {k} peaks of the largest cluster"
+        return ours, verdict_of(ok, math.isfinite(e) and (k or 0) >= MIN_PEAKS), note
+    ours = f"{show(e, '+.0%')} right after {k} peaks of the largest cluster"
     if rule != PEAK_DEFAULT:
         ours += f" (peak: {PEAKS.get(rule, rule)})"
     note = "" if ok or not math.isfinite(e) else (
@@ -387,7 +387,7 @@ def _enhancement(n: dict):
         f"{PEAKS.get(rule, rule)}, stats.cluster_peaks); the paper does not define it. fig3's "
         f"peak_rule gives the other readings ({others}; \"c0\" reads the {forty} as C(0)); "
         "docs/figures.md (Fig. 3) gives what each measures.")
-    return ours, _verdict(ok, math.isfinite(e) and (k or 0) >= MIN_PEAKS), note
+    return ours, verdict_of(ok, math.isfinite(e) and (k or 0) >= MIN_PEAKS), note
 
 
 CLAIMS_123.append(Claim(
@@ -415,12 +415,12 @@ STRADDLE_SHARE = 0.1
 
 
 def _clusters_straddle(n: dict):
-    below, on, above = (_num(n.get(k)) for k in ("quiet_frac_below", "quiet_frac_on", "quiet_frac_above"))
+    below, on, above = (num(n.get(k)) for k in ("quiet_frac_below", "quiet_frac_on", "quiet_frac_above"))
     ours = f"{below:.0%} below, {on:.0%} on, {above:.0%} above the line ({n.get('quiet_n')} clusters)"
     ok = below >= STRADDLE_SHARE and (on + above) >= STRADDLE_SHARE
     note = "" if ok else ("quiet clusters lie mostly on one side of the marginal line; cluster z counts "
                           "contacts with rattlers and walls, see fig4 module docstring")
-    return ours, _verdict(ok, math.isfinite(below)), note
+    return ours, verdict_of(ok, math.isfinite(below)), note
 
 
 CLAIMS_456.append(Claim(
@@ -435,11 +435,11 @@ Z_ISO = 3.0     # the isostatic contact number of frictional disks, d + 1 in d =
 
 
 def _rest_stable(n: dict):
-    z, fb = _num(n.get("z_rest_mean_quiet")), _num(n.get("z_rest_frac_below_iso_quiet"))
-    ours = f"<z_rest> = {_f(z, '.3f')}; {_f(fb, '.1%')} of quiet frames with z_rest < {Z_ISO:g}"
+    z, fb = num(n.get("z_rest_mean_quiet")), num(n.get("z_rest_frac_below_iso_quiet"))
+    ours = f"<z_rest> = {show(z, '.3f')}; {show(fb, '.1%')} of quiet frames with z_rest < {Z_ISO:g}"
     note = "" if fb == 0 or not math.isfinite(fb) else (
         f"in some quiet frames the rest of the pile is at or below z_iso = {Z_ISO:g}.")
-    return ours, _verdict(fb == 0 and z > Z_ISO, math.isfinite(fb) and math.isfinite(z)), note
+    return ours, verdict_of(fb == 0 and z > Z_ISO, math.isfinite(fb) and math.isfinite(z)), note
 
 
 CLAIMS_456.append(Claim(
@@ -452,21 +452,21 @@ CLAIMS_456.append(Claim(
 
 
 def _delta(n: dict):
-    d, cnt = _num(n.get("delta_pooled")), n.get("n_pooled")
-    lo, hi = _num(n.get("delta_pooled_ci_low")), _num(n.get("delta_pooled_ci_high"))
-    ours = (f"{_ci(n, 'delta_pooled', '.2f')} ({cnt} clusters of {n.get('delta_pooled_n_runs')} "
+    d, cnt = num(n.get("delta_pooled")), n.get("n_pooled")
+    lo, hi = num(n.get("delta_pooled_ci_low")), num(n.get("delta_pooled_ci_high"))
+    ours = (f"{show_ci(n, 'delta_pooled', '.2f')} ({cnt} clusters of {n.get('delta_pooled_n_runs')} "
             f"runs, s >= {n.get('s_min')}; interval: runs resampled)")
     if math.isfinite(lo):
-        ok, meas = _overlaps(lo, hi, DELTA.lo, DELTA.hi), True
+        ok, meas = overlaps(lo, hi, DELTA.lo, DELTA.hi), True
     else:                                   # no interval: the fit's own error
-        e = _num(n.get("delta_pooled_err"))
+        e = num(n.get("delta_pooled_err"))
         ok, meas = abs(d - DELTA.value) <= DELTA.tol + 2 * e, math.isfinite(d)
     note = "" if ok or not meas else (
         f"our delta lies outside the paper's {DELTA.value:g} +- {DELTA.tol:g} for every "
         "resampling of the runs. The fit window, s_min and the cluster definition (links through "
         "any contact of a grain with a critical contact) all move delta; with few runs the tail "
         "is short.")
-    return ours, _verdict(ok, meas), note
+    return ours, verdict_of(ok, meas), note
 
 
 CLAIMS_456.append(Claim(
@@ -482,13 +482,13 @@ XI_LATE = FIG5_WINDOWS_DEG[-2:]
 
 
 def _xi_grows(n: dict):
-    rho, slope, k = _num(n.get("xi_spearman")), _num(n.get("xi_slope_log10_per_deg")), n.get("xi_n_windows")
+    rho, slope, k = num(n.get("xi_spearman")), num(n.get("xi_slope_log10_per_deg")), n.get("xi_n_windows")
     w = n.get("windows") or {}
     wa, wb = XI_LATE
     a, b = ((w.get(f"{c:g}") or {}).get("xi") for c in XI_LATE)
-    late = (math.log10(_num(b)) - math.log10(_num(a))) / (wb - wa) if a and b and a > 0 and b > 0 else math.nan
-    ours = (f"Spearman {_f(rho, '.2f')}, d log10 xi / d theta = {_f(slope, '.2f')} per deg over "
-            f"{k} windows, {_f(late, '.2f')} per deg in the last {-wa:g} deg")
+    late = (math.log10(num(b)) - math.log10(num(a))) / (wb - wa) if a and b and a > 0 and b > 0 else math.nan
+    ours = (f"Spearman {show(rho, '.2f')}, d log10 xi / d theta = {show(slope, '.2f')} per deg over "
+            f"{k} windows, {show(late, '.2f')} per deg in the last {-wa:g} deg")
     if not (math.isfinite(rho) and (k or 0) >= 3):
         return ours, INCONCLUSIVE, ""
     if not (rho > 0 and slope > 0):
@@ -497,7 +497,7 @@ def _xi_grows(n: dict):
         return ours, INCONCLUSIVE, "xi grows, but the windows next to the onset have no fit."
     ok = late > slope
     note = "" if ok else "xi grows, but not faster just before the onset (no upturn)."
-    return ours, _verdict(ok), note
+    return ours, verdict_of(ok), note
 
 
 CLAIMS_456.append(Claim(
@@ -510,9 +510,9 @@ CLAIMS_456.append(Claim(
 
 
 def _smax_grows(n: dict):
-    far, near = _num(n.get("s_max_far")), _num(n.get("s_max_near"))
-    ours = f"{_f(far, '.1f')} far from onset -> {_f(near, '.1f')} in the last 0.5 deg"
-    return ours, _verdict(near > far, math.isfinite(far) and math.isfinite(near)), ""
+    far, near = num(n.get("s_max_far")), num(n.get("s_max_near"))
+    ours = f"{show(far, '.1f')} far from onset -> {show(near, '.1f')} in the last 0.5 deg"
+    return ours, verdict_of(near > far, math.isfinite(far) and math.isfinite(near)), ""
 
 
 CLAIMS_456.append(Claim(
@@ -529,22 +529,22 @@ DZ_SINGLE_GRAIN, DZ_NEAR_GLOBAL = -1.5, 0.5
 
 
 def _dz_min(n: dict):
-    mn1 = _num(((n.get("classes") or {}).get("1") or {}).get("dz_min"))
-    below = _num(n.get("frac_below_single_grain"))
+    mn1 = num(((n.get("classes") or {}).get("1") or {}).get("dz_min"))
+    below = num(n.get("frac_below_single_grain"))
     big = n.get("largest_bin") or {}
-    mn_big = _num(big.get("dz_min"))
+    mn_big = num(big.get("dz_min"))
     left = n.get("n_clusters_unstable")
-    ours = (f"min dz {_f(mn1, '.2f')} (s = 1) -> {_f(mn_big, '.2f')} (s >= {big.get('size_lo')}); "
-            f"{_f(below, '.1%')} of the clusters below {DZ_SINGLE_GRAIN:g}")
+    ours = (f"min dz {show(mn1, '.2f')} (s = 1) -> {show(mn_big, '.2f')} (s >= {big.get('size_lo')}); "
+            f"{show(below, '.1%')} of the clusters below {DZ_SINGLE_GRAIN:g}")
     if left is not None:
-        ours += (f" ({left} clusters, {_f(_num(n.get('frac_clusters_unstable')), '.1%')}, holding "
+        ours += (f" ({left} clusters, {show(num(n.get('frac_clusters_unstable')), '.1%')}, holding "
                  "a locally unstable grain left out: moving grains, docs/figures.md)")
     ok = below == 0 and abs(mn1 - DZ_SINGLE_GRAIN) < 1e-6 and abs(mn_big) <= DZ_NEAR_GLOBAL
     note = ""
     if math.isfinite(below) and not ok:
         note = ("the smallest clusters do not sit on the single-grain bound, clusters fall below "
                 "it, or the largest clusters' minimum stays far from the global line.")
-    return ours, _verdict(ok, math.isfinite(below) and math.isfinite(mn_big)), note
+    return ours, verdict_of(ok, math.isfinite(below) and math.isfinite(mn_big)), note
 
 
 CLAIMS_456.append(Claim(
@@ -562,27 +562,27 @@ CLAIMS_456.append(Claim(
 
 def _dz_shift(n: dict):
     cls = n.get("classes", {})
-    slope = _num(n.get("slope_per_decade"))
+    slope = num(n.get("slope_per_decade"))
     big = n.get("largest_bin") or {}
-    mean_big = _num(big.get("dz_mean"))
-    ours = (f"<dz> {_f(_num((cls.get('1') or {}).get('dz_mean')), '.2f')} (s = 1) -> "
-            f"{_f(mean_big, '.2f')} (s >= {big.get('size_lo')}), "
-            f"{_f(slope, '+.2f')} per decade of size")
+    mean_big = num(big.get("dz_mean"))
+    ours = (f"<dz> {show(num((cls.get('1') or {}).get('dz_mean')), '.2f')} (s = 1) -> "
+            f"{show(mean_big, '.2f')} (s >= {big.get('size_lo')}), "
+            f"{show(slope, '+.2f')} per decade of size")
     ok = slope > 0 and mean_big > 0
     # the size classes from 8 grains up ("8-15", "16+"), said to level off when their means lie
     # within 0.05 of each other
-    big_classes = [(k, _num(c.get("dz_mean"))) for k, c in cls.items()
+    big_classes = [(k, num(c.get("dz_mean"))) for k, c in cls.items()
                    if int(k.split("-")[0].rstrip("+")) >= 8]
     means = [m for _, m in big_classes]
     flat = len(means) > 1 and max(means) - min(means) < 0.05
-    plateau = ", ".join(f"{_f(m, '+.2f')} (s {'>= ' + k[:-1] if k.endswith('+') else '= ' + k})"
+    plateau = ", ".join(f"{show(m, '+.2f')} (s {'>= ' + k[:-1] if k.endswith('+') else '= ' + k})"
                         for k, m in big_classes)
     note = "" if ok or not math.isfinite(mean_big) else (
         "our mean delta z rises with size but stays below the global line (negative) for the "
         "largest clusters we have"
         + (f"; from 8 grains up {'it levels off: ' if flat else ''}{plateau}" if plateau else "")
         + "; the paper's distributions end slightly positive.")
-    return ours, _verdict(ok, math.isfinite(slope) and math.isfinite(mean_big)), note
+    return ours, verdict_of(ok, math.isfinite(slope) and math.isfinite(mean_big)), note
 
 
 CLAIMS_456.append(Claim(

@@ -7,7 +7,7 @@ from __future__ import annotations
 
 import math
 
-from .judging import Claim, Rule, _ci_text, _f, _num, _verdict
+from .judging import Claim, Rule, num, show, show_interval, verdict_of
 
 BEYOND = "beyond the paper"     # the paper's value of a claim the paper does not make
 
@@ -16,14 +16,14 @@ CLAIMS_RIGIDITY: list[Claim] = []   # in report order: each appended right after
 
 def _rigid_spans(n: dict):
     d = n.get("quiet_spanning_fraction") or {}
-    lo = _num(d.get("low"))
-    ours = (f"{_ci_text(d)} of the quiet frames span; largest rigid cluster "
-            f"{_ci_text(n.get('quiet_rigid_fraction'))} of the grains")
+    lo = num(d.get("low"))
+    ours = (f"{show_interval(d)} of the quiet frames span; largest rigid cluster "
+            f"{show_interval(n.get('quiet_rigid_fraction'))} of the grains")
     ok = lo > 0.5
     note = "" if ok or not math.isfinite(lo) else (
         "in most quiet frames the largest rigid cluster does not reach from the ground to the "
         "free surface.")
-    return ours, _verdict(ok, math.isfinite(lo)), note
+    return ours, verdict_of(ok, math.isfinite(lo)), note
 
 
 CLAIMS_RIGIDITY.append(Claim(
@@ -40,11 +40,11 @@ CLAIMS_RIGIDITY.append(Claim(
 
 def _rigid_shrinks(n: dict):
     d = n.get("rigid_fraction_shrink") or {}
-    hi = _num(d.get("high"))
-    ours = (f"{_ci_text(n.get('rigid_fraction_far'))} further than {_f(n.get('far_deg'), 'g')} "
-            f"deg -> {_ci_text(n.get('rigid_fraction_near'))} within {_f(n.get('near_deg'), 'g')} "
-            f"deg of onsets (difference {_ci_text(d, '+.3f')})")
-    return ours, _verdict(hi < 0, math.isfinite(hi)), ""
+    hi = num(d.get("high"))
+    ours = (f"{show_interval(n.get('rigid_fraction_far'))} further than {show(n.get('far_deg'), 'g')} "
+            f"deg -> {show_interval(n.get('rigid_fraction_near'))} within {show(n.get('near_deg'), 'g')} "
+            f"deg of onsets (difference {show_interval(d, '+.3f')})")
+    return ours, verdict_of(hi < 0, math.isfinite(hi)), ""
 
 
 CLAIMS_RIGIDITY.append(Claim(
@@ -62,17 +62,17 @@ MIN_ONSETS = 5      # fewest onsets after a quiet frame the loss of spanning is 
 
 def _rigid_loses_spanning(n: dict):
     k = n.get("n_onsets") or 0
-    before = _num(n.get("spanning_before_fraction"))
-    at = _num(n.get("spanning_at_fraction"))
+    before = num(n.get("spanning_before_fraction"))
+    at = num(n.get("spanning_at_fraction"))
     lost = 1.0 - before
-    ours = (f"{_f(lost, '.0%')} of {k} onsets follow a quiet frame that does not span (median "
-            f"{_f(_num(n.get('loss_to_onset_median')), '.2f')} deg before the onset); "
-            f"{_f(at, '.0%')} still span at the onset frame")
+    ours = (f"{show(lost, '.0%')} of {k} onsets follow a quiet frame that does not span (median "
+            f"{show(num(n.get('loss_to_onset_median')), '.2f')} deg before the onset); "
+            f"{show(at, '.0%')} still span at the onset frame")
     ok = lost > 0.5
     note = "" if ok or not math.isfinite(lost) else (
         "the spanning rigid cluster is mostly still there at the last quiet frame, and at the "
         "onset frame itself: it breaks during the avalanche, it does not announce it.")
-    return ours, _verdict(ok, k >= MIN_ONSETS and math.isfinite(lost)), note
+    return ours, verdict_of(ok, k >= MIN_ONSETS and math.isfinite(lost)), note
 
 
 CLAIMS_RIGIDITY.append(Claim(
@@ -88,17 +88,17 @@ TOGETHER_DEG = 1.0  # the loss of spanning and the marginal crossing at most thi
 
 
 def _rigid_vs_marginal(n: dict):
-    sp = _num(n.get("spanning_loss_theta_to_onset"))
-    mz = _num(n.get("marginal_crossing_theta_to_onset"))
+    sp = num(n.get("spanning_loss_theta_to_onset"))
+    mz = num(n.get("marginal_crossing_theta_to_onset"))
     both_after = not math.isfinite(sp) and not math.isfinite(mz)
     if both_after:
         ours = ("neither before the onset: up to theta_m most quiet frames span and their mean "
                 "delta z_gen stays above 0")
     else:
-        ours = (f"spanning lost (windows below 1/2) at {_f(sp, '.2f')} deg, marginal line crossed "
-                f"at {_f(mz, '.2f')} deg (n/a: not before the onset)")
+        ours = (f"spanning lost (windows below 1/2) at {show(sp, '.2f')} deg, marginal line crossed "
+                f"at {show(mz, '.2f')} deg (n/a: not before the onset)")
     together = math.isfinite(sp) and math.isfinite(mz) and abs(sp - mz) <= TOGETHER_DEG
-    return ours, _verdict(both_after or together), ""
+    return ours, verdict_of(both_after or together), ""
 
 
 CLAIMS_RIGIDITY.append(Claim(
