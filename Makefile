@@ -152,9 +152,12 @@ FIG_COMMON := $(wildcard src/tiltpile/__init__.py src/tiltpile/figures/__init__.
                          src/tiltpile/outputs.py) \
               $(filter-out %/structure.py %/zcount.py,$(ANALYSIS))
 FIG_USES_fig1 := src/tiltpile/figures/snapshot.py
+FIG_USES_fig2 := src/tiltpile/paper_values.py
 FIG_USES_fig3 := src/tiltpile/figures/snapshot.py
+FIG_USES_fig5 := src/tiltpile/paper_values.py
 FIG_USES_fig7 := src/tiltpile/figures/snapshot.py
-FIG_USES_preparation := src/tiltpile/figures/fig2.py src/tiltpile/analysis/structure.py
+FIG_USES_preparation := src/tiltpile/figures/fig2.py src/tiltpile/analysis/structure.py \
+                        src/tiltpile/paper_values.py
 fig_module = $(firstword $(subst _, ,$(1)))
 ENSEMBLE_ARGS := $(if $(SCHEDULER),--scheduler $(SCHEDULER)) $(if $(WORKERS),--workers $(WORKERS)) \
                  $(foreach kv,$(SET),--set '$(kv)')
@@ -291,7 +294,7 @@ REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparati
                   $(REPORT_ROOT)/definitions.json $(REPORT_ROOT)/default-dem/fig*.json \
                   $(REPORT_ROOT)/default-dem/same-piles/same_piles.json)
 $(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli/report.py src/tiltpile/__init__.py \
-           src/tiltpile/outputs.py | $(STAMP)
+           src/tiltpile/outputs.py src/tiltpile/paper_values.py | $(STAMP)
 	$(PY) -m tiltpile report --figures $(FIGURES) --out $@
 
 # `make reports`: every committed report rewritten from the committed figures' JSON, nothing run
@@ -364,7 +367,7 @@ PREP_PARAMS = {"data_dirs": [$(subst $(prep_space),$(prep_comma),$(foreach d,$(P
 ZCOUNT_CODE := $(wildcard src/tiltpile/__init__.py src/tiltpile/figures/__init__.py \
                           src/tiltpile/figures/style.py src/tiltpile/figures/zcount.py \
                           src/tiltpile/record.py src/tiltpile/store/*.py src/tiltpile/cli/zcount.py \
-                          src/tiltpile/outputs.py) \
+                          src/tiltpile/outputs.py src/tiltpile/paper_values.py) \
                $(filter-out %/ensemble_data.py %/legacy_codes.py %/structure.py,$(ANALYSIS))
 .PHONY: preparation preparation-runs zcount
 preparation-runs: | $(STAMP) check-nb

@@ -3,8 +3,10 @@
 
 Layers, from the bottom up (``LAYERS``). A module imports only from its own package and from
 layers below its own, never from beside or above it; ``tests/test_layers.py`` enforces this and
-that no import circle exists. Data flows up the same way: a configuration (``config``, its TOML
-presets in ``presets``) is simulated (``sim``, numba kernels that know no files, or ``dem``, the
+that no import circle exists. At the bottom, importing nothing, lie the paper's values
+(``paper_values``: each number of the paper that the code judges against or takes over, with
+its source). Data then flows up: a configuration (``config``, its TOML presets in ``presets``)
+is simulated (``sim``, numba kernels that know no files, or ``dem``, the
 same protocol in LAMMPS), its output paths checked (``paths``) and its health judged
 (``health``), its outputs written one writer at a time and replaced whole (``outputs``), written (``store``, the only HDF5 code; ``record``, what the figures keep of a
 finished run), run one (``runner``) or many at a time (``ensemble``), analysed (``analysis``),
@@ -19,6 +21,7 @@ __version__ = "0.1.0"
 
 # each entry: the subpackages and modules of one layer (names under tiltpile/)
 LAYERS = (
+    ("paper_values",),                    # the paper's values, each with its source
     ("config", "presets", "sim"),         # validated parameters and presets; the simulator
     ("dem",),                             # the second engine: soft-sphere DEM (LAMMPS)
     ("paths", "health", "outputs"),       # output paths; health limits of a run; output locks

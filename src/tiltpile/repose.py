@@ -57,10 +57,11 @@ import numpy as np
 from tiltpile import config as cfgmod
 from tiltpile.sim import protocol
 from tiltpile.analysis.structure import surface_tilt_deg
+from tiltpile.paper_values import SLIDE_KE
 from tiltpile.runner import system_from_frame
 from tiltpile.store import RunFileError, open_run
 
-KE_SLIDE = 1e-3       # [m g d] per mobile grain: a large slide (paper preset's protocol.end_ke)
+KE_SLIDE = SLIDE_KE.value  # [m g d] per mobile grain: a large slide (paper preset's protocol.end_ke)
 SLIDE_SPAN_DEG = 1.0  # [deg] of tilt the slide must last
 KE_STOP = 1e-5        # [m g d] per mobile grain: the flow has stopped (module docstring)
 STOP_SPAN_DEG = 0.5   # [deg] of tilt it must stay below

@@ -40,9 +40,11 @@ from typing import NamedTuple
 
 import numpy as np
 
+from tiltpile.paper_values import Z_MEAN
+
 from . import contacts as _ct
 
-PAPER_Z = 3.5  # the paper's "average number of contacts for the whole pile", <z> ~ 3.5
+PAPER_Z = Z_MEAN.value  # the paper's "average number of contacts for the whole pile", <z> ~ 3.5
 
 #: relative force thresholds t of family "force": f_n > t <f_n>
 FORCE_THRESHOLDS = (0.0, 1e-5, 1e-4, 1e-3, 1e-2, 1e-1)

@@ -7,13 +7,15 @@ import sys
 from pathlib import Path
 
 from tiltpile.cli._common import ConfigError, check_output
+from tiltpile.paper_values import SLIDE_KE
 
 FORMAT = "tiltpile-repose/1"
 
 
 # the library's defaults (tiltpile.repose; not imported here: it loads the simulator, and every
-# command builds this parser); tests/test_repose.py checks that they agree
-DEFAULTS = dict(ke_slide=1e-3, ke_stop=1e-5, slide_span=1.0, stop_span=0.5, max_deg=35.0)
+# command builds this parser; the slide's threshold is the paper's value, paper_values.SLIDE_KE);
+# tests/test_repose.py checks that they agree
+DEFAULTS = dict(ke_slide=SLIDE_KE.value, ke_stop=1e-5, slide_span=1.0, stop_span=0.5, max_deg=35.0)
 
 
 def add_parser(sub) -> None:

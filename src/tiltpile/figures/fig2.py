@@ -58,6 +58,7 @@ from tiltpile.analysis import stats as _st
 from tiltpile.analysis.avalanche import (SPACING_LIMIT, ResolutionWarning, frame_spacing_check,
                                          onset_robustness_ensemble, stretches)
 from tiltpile.analysis.stats import power_law_departure  # noqa: F401  (the estimator of panel a)
+from tiltpile.paper_values import SLIDE_KE
 
 from . import style
 from .data import Reads, analysis_params, per_run_quiet
@@ -69,7 +70,7 @@ READS = Reads("Fig. 2",
               clusters=())
 
 NAME = "fig2_avalanche_criterion"
-AVALANCHE_KE = 1e-3    # m g d per mobile grain: the avalanche angle's threshold (= repose.KE_SLIDE)
+AVALANCHE_KE = SLIDE_KE.value    # m g d per mobile grain: the avalanche angle's threshold
 
 
 def _stats(x) -> dict:

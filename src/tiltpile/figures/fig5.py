@@ -36,6 +36,7 @@ import pandas as pd
 from tiltpile.analysis import (InsufficientDataError, cluster_size_windows,
                                discrete_log_binned_density, fit_power_law_cutoff)
 from tiltpile.analysis.stats import bootstrap_runs_ci
+from tiltpile.paper_values import DELTA, FIG5_WINDOWS_DEG
 
 from . import style
 from .data import Reads
@@ -93,8 +94,8 @@ def xi_trend(center, xi) -> dict:
     return {"spearman": float(rho), "slope_log10_xi_per_deg": float(slope), "n": int(c.size)}
 
 
-def compute(ens, windows=(-14.4, -4.6, -0.75, -0.25), width: float = 0.5, s_min: int = 2,
-            delta_pool=(-1.0, 0.0), delta_guide: float = 2.5, inset_lo: float = -15.0,
+def compute(ens, windows=FIG5_WINDOWS_DEG, width: float = 0.5, s_min: int = 2,
+            delta_pool=(-1.0, 0.0), delta_guide: float = DELTA.value, inset_lo: float = -15.0,
             far_below: float = -4.0, min_samples: int = 50, bins_per_decade: int = 5,
             delta_bootstrap: int = 199):
     """P(s) per window of theta - theta_m and during avalanches, fits, xi and <S_max> insets.

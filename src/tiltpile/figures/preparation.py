@@ -46,6 +46,7 @@ from tiltpile.analysis.stats import diff_ci
 from tiltpile.analysis.observables import run_files
 
 from tiltpile.config import history_label, rate_suffix
+from tiltpile.paper_values import QUIET_DEG
 
 from . import fig2, style
 from .data import Reads, per_run_quiet
@@ -89,7 +90,7 @@ BULK_MARGIN = 2.0
 
 # the paper's Fig. 5 has quiet frames 14.4 deg before an onset: some of its piles had their
 # first onset at 14.4 deg or later
-QUIET_PAST_DEG = 14.4
+QUIET_PAST_DEG = QUIET_DEG.value
 
 # a loss of contacts well below the onset cutoff (9 of ~1800 contacts at 1000 grains): the first
 # irreversible rearrangement of the ramp, however small

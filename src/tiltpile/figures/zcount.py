@@ -246,7 +246,7 @@ def _draw(fig, axes, summaries: dict) -> None:
                for c, label in enumerate(summaries)]
     handles += [Line2D([], [], color="k", ls=ls, label=f"walls {'in' if w else 'out'}, "
                        f"rattlers {'in' if r else 'out'}") for (w, r), ls in LINESTYLES.items()]
-    handles.append(Line2D([], [], color=GUIDE, ls="--", label="paper <z> ~ 3.5"))
+    handles.append(Line2D([], [], color=GUIDE, ls="--", label=f"paper <z> ~ {zc.PAPER_Z:g}"))
     fig.legend(handles=handles, loc="upper center", ncol=4, bbox_to_anchor=(0.5, 1.0))
     fig.tight_layout(rect=(0, 0, 1, 0.9))
 

@@ -13,7 +13,7 @@ import json
 import math
 from pathlib import Path
 
-from .judging import AGREES, DISAGREES, INCONCLUSIVE, MISSING, Claim, _f, _num
+from .judging import AGREES, DISAGREES, INCONCLUSIVE, MISSING, Claim, num, show
 
 FILE = "definitions.json"
 #: the definition the analysis uses (the study's first)
@@ -80,9 +80,9 @@ def render(doc: dict | None, claims: list[Claim], scale: str = "") -> list[str]:
     v = verdicts(doc, claims)
     defs = doc["definitions"]
     fit = doc.get("fit") or {}
-    g = _num(fit.get("g"))
+    g = num(fit.get("g"))
     how = ("given" if fit.get("given") else
-           f"fitted by <z> = {_f(_num(fit.get('target')), '.2g')} on the quiet frames "
+           f"fitted by <z> = {show(num(fit.get('target')), '.2g')} on the quiet frames "
            f"({fit.get('n_quiet_frames')} frames)")
     z_list = _z_of(doc, "list")
     where = scale or f"{doc.get('n_runs')} runs of {doc.get('n_grains')} grains"
@@ -90,8 +90,8 @@ def render(doc: dict | None, claims: list[Claim], scale: str = "") -> list[str]:
              f"From `{doc.get('command') or 'tiltpile definitions'}`: {doc.get('n_runs')} runs of "
              f"{doc.get('n_grains')} grains ({(doc.get('history') or {}).get('label', '')}), every "
              "claim judged by its own rule on the figure numbers each definition gives. The one "
-             f"number fitted is the gap of the contact list, g = {_f(g, '.3g')} d ({how}); the "
-             f"tables on that list give quiet-frame <z> = {_f(z_list, '.3f')}.", ""]
+             f"number fitted is the gap of the contact list, g = {show(g, '.3g')} d ({how}); the "
+             f"tables on that list give quiet-frame <z> = {show(z_list, '.3f')}.", ""]
     lines += [f"- **{d['label']}**: {d['what']}" + (f" (`{_params_text(d)}`)" if _params_text(d)
                                                      else "") for d in defs]
     lines += ["", "| claim | " + " | ".join(d["label"] for d in defs) + " |",
@@ -139,7 +139,7 @@ def _z_of(doc: dict, key: str) -> float:
     for d in doc["definitions"]:
         if d["key"] == key:
             n = (d["documents"].get("fig2_avalanche_criterion") or {}).get("numbers", {})
-            return _num(n.get("z_quiet_run_mean"))
+            return num(n.get("z_quiet_run_mean"))
     return math.nan
 
 

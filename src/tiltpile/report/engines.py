@@ -14,7 +14,7 @@ import json
 import math
 from pathlib import Path
 
-from .judging import DISAGREES, MISSING, Claim, _f, _num
+from .judging import DISAGREES, MISSING, Claim, num as _num, show as _f
 from .rigidity import BEYOND
 
 #: (the reference scale, the scale of the other engine): their figures directories are the

@@ -12,7 +12,7 @@ from pathlib import Path
 
 from tiltpile import config as cfgmod
 
-from .judging import SEPARATION, _ci, _f, _num, _wrong_side, approx
+from .judging import SEPARATION, approx, num as _num, show as _f, show_ci as _ci, wrong_side as _wrong_side
 
 
 # (scale, its figures directory below the default scale's) of every preset in the report

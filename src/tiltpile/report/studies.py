@@ -9,7 +9,9 @@ import json
 import math
 from pathlib import Path
 
-from .judging import _f, _num
+from tiltpile.paper_values import AVALANCHE_DEG, QUIET_DEG, REPOSE_DEG, Z_MEAN
+
+from .judging import num, show
 from .scales import scale_dirs
 
 STUDIES = {"preparation": "preparation.json", "zcount": "zcount.json",
@@ -25,7 +27,7 @@ def load_studies(figures_dir) -> dict[str, dict]:
             if (root / f).exists()}
 
 
-QUIET_WINDOW_DEG = 14.4  # the paper's Fig. 5 shows clusters this far before an onset
+QUIET_WINDOW_DEG = QUIET_DEG.value  # the paper's Fig. 5 shows clusters this far before an onset
 
 
 def _theta_m_cites(studies: dict) -> str:
@@ -38,10 +40,10 @@ def _theta_m_cites(studies: dict) -> str:
 
     def part(label):
         e = ens[label]
-        m, lo, hi = (_num(e.get(f"theta_first_onset_{x}")) for x in ("mean", "ci_low", "ci_high"))
+        m, lo, hi = (num(e.get(f"theta_first_onset_{x}")) for x in ("mean", "ci_low", "ci_high"))
         band = f" [{lo:.1f}, {hi:.1f}]" if math.isfinite(lo) and math.isfinite(hi) else ""
-        return (f"{label}: {_quiet_past(e)} of {e['n_runs']} runs quiet to 14.4 deg, first onset "
-                f"{_f(m, '.1f')}{band} deg")
+        return (f"{label}: {_quiet_past(e)} of {e['n_runs']} runs quiet to {QUIET_WINDOW_DEG:g} deg, first onset "
+                f"{show(m, '.1f')}{band} deg")
 
     others = [lab for lab in ens if lab != n["reference"]]
     grains = "/".join(sorted({str(e.get("n_grains")) for e in
@@ -56,20 +58,20 @@ def _z_mean_cites(studies: dict) -> str:
     doc = studies.get("zcount")
     if not doc or not doc.get("ensembles"):
         return ""
-    parts = []
+    parts, z_paper = [], f"{Z_MEAN.value:g}"
     for label, e in doc["ensembles"].items():
-        z = _num((e.get("table", {}).get(e.get("analysis_rule"), {}) or {}).get("z"))
+        z = num((e.get("table", {}).get(e.get("analysis_rule"), {}) or {}).get("z"))
         reach = e.get("reaches_paper_z") or {}
         gap = ((reach.get("first_gap") or {}).get("walls=in rattlers=out grains=bulk") or {})
-        g = _num(gap.get("interpolated"))
-        parts.append(f"{label} {_f(z, '.3f')}, 3.5 at gap <= {_f(g, '.2g')} d" if math.isfinite(g)
-                     else f"{label} {_f(z, '.3f')}, 3.5 at no gap up to the alert distance")
+        g = num(gap.get("interpolated"))
+        parts.append(f"{label} {show(z, '.3f')}, {z_paper} at gap <= {show(g, '.2g')} d" if math.isfinite(g)
+                     else f"{label} {show(z, '.3f')}, {z_paper} at no gap up to the alert distance")
     force = any((e.get("reaches_paper_z") or {}).get("force_rule_reaches")
                 for e in doc["ensembles"].values())
     return ("By counting rule (`tiltpile zcount`, figures/zcount.png): no force threshold reaches "
-            "3.5, " if not force else "By counting rule (`tiltpile zcount`, figures/zcount.png): ") + (
+            f"{z_paper}, " if not force else "By counting rule (`tiltpile zcount`, figures/zcount.png): ") + (
             "counting every pair of bulk grains closer than a surface gap g does: "
-            + "; ".join(parts) + ". The paper's ~3.5 is then what a contact list holding the "
+            + "; ".join(parts) + f". The paper's ~{z_paper} is then what a contact list holding the "
             "near contacts counts, not the force-bearing network.")
 
 
@@ -82,7 +84,7 @@ def _quiet_past(e: dict) -> int:
     end of its tilt counts: it stayed quiet)."""
     if "n_runs_quiet_past" in e:
         return int(e["n_runs_quiet_past"])
-    return sum(x is None or _num(x) >= QUIET_WINDOW_DEG for x in e["per_run"]["theta_first_onset"])
+    return sum(x is None or num(x) >= QUIET_WINDOW_DEG for x in e["per_run"]["theta_first_onset"])
 
 
 def render_preparation(figures_dir) -> list[str]:
@@ -95,8 +97,8 @@ def render_preparation(figures_dir) -> list[str]:
     doc = json.loads(p.read_text())
     n = doc["numbers"]
     given = [m for m in doc.get("ensembles", []) if "slide_ke" in (m.get("analysis") or {})]
-    ke = _num(n.get("slide_ke_reference"))
-    threshold = (f"a kinetic energy per grain above {_f(ke, '.1e')} (the study's slide_ke)" if given
+    ke = num(n.get("slide_ke_reference"))
+    threshold = (f"a kinetic energy per grain above {show(ke, '.1e')} (the study's slide_ke)" if given
                  else "the fresh piles' Fig. 2a kinetic-energy threshold")
     from_records = [m["label"] for m in doc.get("ensembles", []) if m.get("from_records")]
     records_note = ((" " if from_records else "")
@@ -106,18 +108,18 @@ def render_preparation(figures_dir) -> list[str]:
                        f"{'it' if len(from_records) == 1 else 'them'}." if from_records else ""))
 
     def ci(e, key, fmt):
-        m, lo, hi = (_num(e.get(f"{key}_{x}")) for x in ("mean", "ci_low", "ci_high"))
+        m, lo, hi = (num(e.get(f"{key}_{x}")) for x in ("mean", "ci_low", "ci_high"))
         if not math.isfinite(m):
             return "n/a"
         return f"{m:{fmt}} [{lo:{fmt}}, {hi:{fmt}}]" if math.isfinite(lo) else f"{m:{fmt}}"
 
     def rep(e, key):
         r = (e.get("repose") or {}).get(key)
-        if not r or not math.isfinite(_num(r.get("estimate"))):
+        if not r or not math.isfinite(num(r.get("estimate"))):
             return "n/a"
-        lo, hi = _num(r.get("low")), _num(r.get("high"))
+        lo, hi = num(r.get("low")), num(r.get("high"))
         band = f" [{lo:.1f}, {hi:.1f}]" if math.isfinite(lo) and math.isfinite(hi) else ""
-        return f"{_num(r['estimate']):.1f}{band} ({r.get('n')})"
+        return f"{num(r['estimate']):.1f}{band} ({r.get('n')})"
 
     lines = ["", "## Which pile did the paper analyse? Preparation histories", "",
              "From `preparation.json` (`make preparation PREP_DIRS=...`): the same pile and ramp, piles "
@@ -125,7 +127,8 @@ def render_preparation(figures_dir) -> list[str]:
              "`protocol.cycles` and `protocol.theta_rev_deg` for Deboeuf et al.'s two cycles past "
              f"theta_rev) against fresh ones ({n['reference']}, the reference); mean [95% bootstrap "
              "interval over runs]. The paper's Fig. 5 needs runs whose first onset comes after "
-             f"{QUIET_WINDOW_DEG} deg; Deboeuf et al. give theta_r ~ 15 deg and theta_a ~ 21 deg "
+             f"{QUIET_WINDOW_DEG:g} deg; Deboeuf et al. give theta_r ~ {REPOSE_DEG.value:g} deg and "
+             f"theta_a ~ {AVALANCHE_DEG.value:g} deg "
              "for the paper's piles.", "",
              f"Slides in the ramp are detected at {threshold} "
              "for every ensemble. The slide and repose angles come from `tiltpile repose`, which "
@@ -134,7 +137,7 @@ def render_preparation(figures_dir) -> list[str]:
              "of the free surface to the horizontal (lower: the slide has piled grains downhill). The memory: the first frame losing more than 0.5% of its "
              "contacts (irreversible change, however small) and the first 2% onset over the "
              "history's amplitude theta_rev." + records_note, "",
-             "| preparation | runs | first 2% onset (deg) | runs quiet past 14.4 deg "
+             f"| preparation | runs | first 2% onset (deg) | runs quiet past {QUIET_WINDOW_DEG:g} deg "
              "| first slide in the ramp (deg; runs) | slide angle (deg; repose) "
              "| repose angle: box (deg) | repose angle: surface (deg) "
              "| first change > 0.5% (deg) | first onset / theta_rev "
@@ -164,16 +167,16 @@ def render_preparation(figures_dir) -> list[str]:
             f"| {label} | {ci(e, 'z_quiet', '.3f')} | {ci(e, 'n_m_quiet', '.4f')} "
             f"| {ci(e, 'phi_start', '.4f')} | {ci(e, 'fabric_start', '.3f')} "
             f"| {ci(e, 'fabric_major_start', '.1f')} | {ci(e, 'surface_tilt_start', '.2f')} "
-            f"| {_f(_num(bim.get('ashman_d')), '.2f')} "
-            f"| {_f(_num(e.get('lost_zero_fraction')), '.0%')} |")
+            f"| {show(num(bim.get('ashman_d')), '.2f')} "
+            f"| {show(num(e.get('lost_zero_fraction')), '.0%')} |")
     ref = n["ensembles"][n["reference"]]
     lines.append("")
     if best_n > 0:
-        lines.append(f"**{best}** brings the most runs past the paper's {QUIET_WINDOW_DEG} deg before their "
+        lines.append(f"**{best}** brings the most runs past the paper's {QUIET_WINDOW_DEG:g} deg before their "
                      f"first onset ({best_n} of {n['ensembles'][best]['n_runs']}; fresh piles: "
                      f"{_quiet_past(ref)}).")
     else:
-        lines.append(f"No preparation studied brings a run past {QUIET_WINDOW_DEG} deg before its first "
+        lines.append(f"No preparation studied brings a run past {QUIET_WINDOW_DEG:g} deg before its first "
                      "onset; the differences from the fresh piles (first onset, onsets below the "
                      "preparation's amplitude) show how far each goes.")
     for label, dd in n.get("differences", {}).items():
@@ -193,7 +196,7 @@ def _slide_difference(ref: dict, e: dict, dd: dict) -> str:
     d = dd.get(key)
     if not d or any(x.get(count) != x.get("n_runs") for x in (ref, e)):
         return ""
-    if not all(math.isfinite(_num(d.get(k))) for k in ("estimate", "low", "high")):
+    if not all(math.isfinite(num(d.get(k))) for k in ("estimate", "low", "high")):
         return ""
     return (f", first slide in the ramp {d['estimate']:+.2f} deg "
             f"[{d['low']:+.2f}, {d['high']:+.2f}]")
@@ -235,7 +238,7 @@ def render_study(doc: dict) -> list[str]:
              + ").", ""]
 
     def cell(c, fmt):
-        m, lo, hi = (_num(c.get(f)) for f in ("estimate", "low", "high"))
+        m, lo, hi = (num(c.get(f)) for f in ("estimate", "low", "high"))
         if not math.isfinite(m):
             return "n/a"
         band = f" [{lo:{fmt}}, {hi:{fmt}}]" if math.isfinite(lo) and math.isfinite(hi) else ""
@@ -253,10 +256,10 @@ def render_study(doc: dict) -> list[str]:
     mc = n.get("mohr_coulomb")
     if mc:
         f = mc["fit"]
-        pairs = "; ".join(f"mu = {m:g}: {_f(_num(y), '.1f')} against {p:.1f}"
+        pairs = "; ".join(f"mu = {m:g}: {show(num(y), '.1f')} against {p:.1f}"
                           for m, y, p in zip(mc["mu"], mc["measured_deg"], mc["predicted_deg"]))
         band = (f" [{f['slope_low']:.2f}, {f['slope_high']:.2f}]"
-                if math.isfinite(_num(f.get("slope_low"))) else "")
+                if math.isfinite(num(f.get("slope_low"))) else "")
         word = {"consistent": "consistent with Mohr-Coulomb's slope 1",
                 "flat": "consistent with no dependence on friction, not with Mohr-Coulomb's slope 1",
                 "shallower": "below Mohr-Coulomb's slope 1 (and above 0)",
@@ -264,7 +267,7 @@ def render_study(doc: dict) -> list[str]:
                 "undetermined": "undetermined (no interval: too few runs)"}[mc["verdict"]]
         lines += ["", "**Mohr-Coulomb.** The clusters' orientation to gravity (Fig. 3's: quiet "
                   "clusters of >= 5 grains, pooled) against 45 + 1/2 atan(mu) deg: " + pairs
-                  + f". Least-squares slope of measured against predicted {_f(_num(f['slope']), '.2f')}"
+                  + f". Least-squares slope of measured against predicted {show(num(f['slope']), '.2f')}"
                   + band + f" (runs resampled within each value, {f['n_resamples']} resamples), "
-                  f"intercept {_f(_num(f['intercept']), '.1f')} deg: {word}."]
+                  f"intercept {show(num(f['intercept']), '.1f')} deg: {word}."]
     return lines
