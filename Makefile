@@ -284,14 +284,14 @@ $(FIG_JSON): $(FIGURES)/%.json: notebooks/%.ipynb src/tiltpile/figures/$$(call f
 # scale) and the preparation and <z> studies of the default scale's directory. The scales are
 # config.PRESET_TABLE's (report "fig2" or "claims"; the default scale, figures/, besides these),
 # as are RUNS_<preset> above: make cannot read it, tests/workflow/test_presets.py equates them.
-REPORT_SCALES := smoke default-fresh paper paper-fresh
-REPORT_COMPARED := default-fresh paper paper-fresh
+REPORT_SCALES := smoke default-fresh default-dem paper paper-fresh
+REPORT_COMPARED := default-fresh default-dem paper paper-fresh
 REPORT_ROOT := $(if $(filter $(REPORT_SCALES),$(notdir $(FIGURES))),$(patsubst %/,%,$(dir $(FIGURES))),$(FIGURES))
 REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparation.json \
                   $(foreach s,$(REPORT_SCALES),$(REPORT_ROOT)/$(s)/fig2_avalanche_criterion.json) \
                   $(foreach s,/ $(REPORT_COMPARED:%=/%/),$(REPORT_ROOT)$(s)fig*.json) \
                   $(REPORT_ROOT)/preparation.json $(REPORT_ROOT)/zcount.json \
-                  $(REPORT_ROOT)/definitions.json $(REPORT_ROOT)/default-dem/fig*.json \
+                  $(REPORT_ROOT)/definitions.json \
                   $(REPORT_ROOT)/default-dem/same-piles/same_piles.json)
 $(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli/report.py src/tiltpile/__init__.py \
            src/tiltpile/outputs.py src/tiltpile/paper_values.py | $(STAMP)

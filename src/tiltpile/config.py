@@ -61,7 +61,7 @@ PRESET_TABLE = (
     Preset("smoke", 4, "figures/smoke", "fig2"),
     Preset("default", 6, "figures", "claims"),
     Preset("default-fresh", 6, "figures/default-fresh", "claims"),
-    Preset("default-dem", 6, "figures/default-dem", ""),
+    Preset("default-dem", 6, "figures/default-dem", "claims"),
     Preset("paper", 50, "figures/paper", "claims"),
     Preset("paper-fresh", 50, "figures/paper-fresh", "claims"),
     Preset("paper-fast", 16, "figures/paper-fast", ""),

@@ -266,7 +266,7 @@ def test_scales_table_says_not_yet_run(tmp_path):
     text = report.write_report(tmp_path, tmp_path / "R.md").read_text()
     assert "## The same numbers at every scale" in text
     row = next(line for line in text.splitlines() if line.startswith("| first 2% onset"))
-    assert row.count("not yet run") == 4 and "9.7 [8.1, 10.9]" in row   # all but the default
+    assert row.count("not yet run") == len(report.SCALES) - 1 and "9.7 [8.1, 10.9]" in row   # all but the default
     assert "## How each claim is tested" in text
     assert all(c.key in report.RULES for c in report.CLAIMS)
 
@@ -407,12 +407,20 @@ def test_every_claim_at_every_scale_and_why_a_verdict_changes(tmp_path):
     _write(root / "smoke", [_fig2()])
     text = report.write_report(root, tmp_path / "R.md").read_text()
     sec = text.split("## Each claim at every scale")[1].split("\n## ")[0]
-    assert "| claim | default | default-fresh | paper | paper-fresh |" in sec and "smoke" not in sec
+    from tiltpile.report.document import COMPARED
+    assert "| claim | " + " | ".join(COMPARED) + " |" in sec and "smoke" not in sec
+    assert COMPARED[:2] == ("default", "default-fresh") and "paper" in COMPARED
+
+    def cells(name):
+        return dict(zip(COMPARED, _row(sec, name).rstrip(" |").split(" | ")[1:]))
+
     by = {c.key: c.text for c in report.CLAIMS}
-    assert _row(sec, by["cutoff_in_gap"]).split(" | ")[1:] == [
-        "disagrees", "not yet run", "agrees", "not yet run |"]
-    assert _row(sec, by["theta_slide"]).split(" | ")[1:4] == ["inconclusive", "not yet run", "agrees"]
-    assert _row(sec, "piles").startswith("| piles | 250 x 3 | not yet run | 4000 x 3 |")
+    assert cells(by["cutoff_in_gap"]) == {**dict.fromkeys(COMPARED, "not yet run"),
+                                          "default": "disagrees", "paper": "agrees"}
+    assert [cells(by["theta_slide"])[s] for s in ("default", "default-fresh", "paper")] == [
+        "inconclusive", "not yet run", "agrees"]
+    assert [cells("piles")[s] for s in ("default", "default-fresh", "paper")] == [
+        "250 x 3", "not yet run", "4000 x 3"]
     changed = [line for line in sec.splitlines() if line.startswith("- **")]
     assert {line.split("**")[1] for line in changed} == {by["cutoff_in_gap"], by["theta_slide"]}
     gap = next(line for line in changed if by["cutoff_in_gap"] in line)
@@ -456,9 +464,10 @@ def test_what_changes_a_verdict_is_named_scale_or_history(tmp_path):
     sec = text.split("### What changes with scale and history")[1].split("\n## ")[0]
     by = {c.key: c.text for c in report.CLAIMS}
     assert ("| claim | history: default-fresh → default | history: paper-fresh → paper | "
-            "scale: default-fresh → paper-fresh | scale: default → paper |") in sec
+            "scale: default-fresh → paper-fresh | scale: default → paper | "
+            "engine: default → default-dem |") in sec
     assert _row(sec, by["theta_m"]).split(" | ")[1:] == [
-        "disagrees → agrees", "not yet run", "same", "not yet run |"]
+        "disagrees → agrees", "not yet run", "same", "not yet run", "not yet run |"]
     assert f"Changes with the history: {by['theta_m']}." in sec
     assert by["cutoff_in_gap"] not in sec                       # the same verdict everywhere
     assert "also changes the history" not in sec                # default → paper not run
@@ -466,9 +475,9 @@ def test_what_changes_a_verdict_is_named_scale_or_history(tmp_path):
     sec = report.write_report(root, tmp_path / "R.md").read_text().split(
         "### What changes with scale and history")[1].split("\n## ")[0]
     assert _row(sec, by["cutoff_in_gap"]).split(" | ")[1:] == [
-        "same", "disagrees → agrees", "same", "disagrees → agrees |"]
+        "same", "disagrees → agrees", "same", "disagrees → agrees", "not yet run |"]
     assert _row(sec, by["theta_m"]).split(" | ")[1:] == [
-        "disagrees → agrees", "disagrees → agrees", "same", "same |"]
+        "disagrees → agrees", "disagrees → agrees", "same", "same", "not yet run |"]
     line = next(x for x in sec.splitlines() if x.startswith("Changes with both"))
     assert by["cutoff_in_gap"] in line and by["theta_m"] not in line
     assert ("The pair default → paper also changes the history (1000 x 3, cycled fast → "
