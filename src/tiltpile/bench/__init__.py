@@ -16,6 +16,8 @@ nothing when imported (``python -m tiltpile.bench`` lists them, from the package
 ``code_change``        whether an analysis edit keeps the tables' values (old commit against this
                        one), and the ``analysis.legacy_codes.SUPERSEDED`` entries that carry the
                        records over it
+``machine_code``       the simulator kernels' machine code, normalized: two versions of ``sim/``
+                       compared without a quiet core (identical code, identical speed)
 
 These are the tools in use. The finished studies (``coarse``, ``settle``, ``flow_caps``,
 ``precursor_caps``, ``store_filters``, ``dask_overhead``, ``ke_threshold``) left the package

@@ -78,6 +78,7 @@ C_NX, C_NY, C_B, C_MU, C_IWN, C_IWT, C_PN, C_PT = range(8)
 N_CONTACT_COLUMNS = 8
 IMPULSE = slice(C_PN, C_PT + 1)
 V_X, V_Y, V_S, V_IM = range(4)
+N_BODY_COLUMNS = 4
 
 FORWARD, ALTERNATING, RANDOM, INTERLEAVED = 0, 1, 2, 3
 _U = np.uint64  # unsigned indices: numba emits no negative-index wrap-around for them
@@ -242,10 +243,13 @@ def _sweep_stored(ci, cj, cf, vf, w):
     """One sweep over the contacts in their stored order (forward and interleaved sweeps).
 
     ci, cj (C,) body indices; cf = c.ravel() (8 C,), vf = vel.ravel() (4 (N + 3),), updated in
-    place; w the relaxation. Returns (sum |dp|^2, sum |p|^2) over the sweep.
+    place; w the relaxation. Returns (sum |dp|^2, sum |p|^2) over the sweep. This is the sweep
+    the presets run (``solver.sweep`` forward or interleaved); its local solve is the contact
+    law of the module docstring, the same as ``_local_solution``'s.
 
     Written for the compiler: flat views with unsigned indices carry no negative-index
-    wrap-around code, and the clip to the cone is min/max instead of branches, so each update is
+    wrap-around code, the columns are the module's named integers (folded in as constants: the
+    machine code is that of bare numbers), and the clip to the cone is min/max instead of branches, so each update is
     one chain of dependent operations and the sweep is as fast as the *order* lets consecutive
     updates overlap (``interleave``). The local solve is written out here rather than shared with
     ``_local_solution`` (random and alternating sweeps, ``natural_residual``) because an inlined
@@ -255,36 +259,36 @@ def _sweep_stored(ci, cj, cf, vf, w):
     num = 0.0
     den = 0.0
     for a in range(nc):
-        i = _U(4) * _U(ci[a])
-        j = _U(4) * _U(cj[a])
-        b = _U(8) * a
-        nx = cf[b]
-        ny = cf[b + _U(1)]
-        pn = cf[b + _U(6)]
-        pt = cf[b + _U(7)]
-        dvx = vf[i] - vf[j]
-        dvy = vf[i + _U(1)] - vf[j + _U(1)]
+        i = _U(N_BODY_COLUMNS) * _U(ci[a])
+        j = _U(N_BODY_COLUMNS) * _U(cj[a])
+        b = _U(N_CONTACT_COLUMNS) * a
+        nx = cf[b + _U(C_NX)]
+        ny = cf[b + _U(C_NY)]
+        pn = cf[b + _U(C_PN)]
+        pt = cf[b + _U(C_PT)]
+        dvx = vf[i + _U(V_X)] - vf[j + _U(V_X)]
+        dvy = vf[i + _U(V_Y)] - vf[j + _U(V_Y)]
         un = dvx * nx + dvy * ny
-        ut = -dvx * ny + dvy * nx - (vf[i + _U(2)] + vf[j + _U(2)])
+        ut = -dvx * ny + dvy * nx - (vf[i + _U(V_S)] + vf[j + _U(V_S)])
         # u without this contact's own impulse is u - W p; the local solution in closed form,
         # p_n projected on p_n >= 0, then p_t on the cone |p_t| <= mu p_n (open: p_t = 0)
-        pn_new = max(0.0, pn - (un + cf[b + _U(2)]) * (cf[b + _U(4)] * w))
-        lim = cf[b + _U(3)] * pn_new
-        pt_new = min(lim, max(-lim, pt - ut * (cf[b + _U(5)] * w)))
+        pn_new = max(0.0, pn - (un + cf[b + _U(C_B)]) * (cf[b + _U(C_IWN)] * w))
+        lim = cf[b + _U(C_MU)] * pn_new
+        pt_new = min(lim, max(-lim, pt - ut * (cf[b + _U(C_IWT)] * w)))
         dpn = pn_new - pn
         dpt = pt_new - pt
         px = dpn * nx - dpt * ny
         py = dpn * ny + dpt * nx
-        imi = vf[i + _U(3)]
-        imj = vf[j + _U(3)]
-        vf[i] += imi * px
-        vf[i + _U(1)] += imi * py
-        vf[i + _U(2)] -= 2.0 * imi * dpt
-        vf[j] -= imj * px
-        vf[j + _U(1)] -= imj * py
-        vf[j + _U(2)] -= 2.0 * imj * dpt
-        cf[b + _U(6)] = pn_new
-        cf[b + _U(7)] = pt_new
+        imi = vf[i + _U(V_IM)]
+        imj = vf[j + _U(V_IM)]
+        vf[i + _U(V_X)] += imi * px
+        vf[i + _U(V_Y)] += imi * py
+        vf[i + _U(V_S)] -= 2.0 * imi * dpt
+        vf[j + _U(V_X)] -= imj * px
+        vf[j + _U(V_Y)] -= imj * py
+        vf[j + _U(V_S)] -= 2.0 * imj * dpt
+        cf[b + _U(C_PN)] = pn_new
+        cf[b + _U(C_PT)] = pt_new
         num += dpn * dpn + dpt * dpt
         den += pn_new * pn_new + pt_new * pt_new
     return num, den
@@ -293,7 +297,9 @@ def _sweep_stored(ci, cj, cf, vf, w):
 @njit(inline="always")
 def _local_solution(ci, cj, c, vel, a, w):
     """The local solution (p_n, p_t) of contact ``a`` given the current velocities, moved ``w``
-    times the plain correction (2D arrays; ``_sweep_stored`` writes the same out on flat ones)."""
+    times the plain correction, on 2D arrays: the random and alternating sweeps and
+    ``natural_residual`` use it; the presets' sweep, ``_sweep_stored``, writes the same law out
+    on flat arrays (``tests/sim/test_solver.py`` holds the two equal)."""
     i = ci[a]
     j = cj[a]
     nx = c[a, C_NX]
