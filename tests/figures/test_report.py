@@ -586,3 +586,61 @@ def test_the_engines_section_says_which_disagreements_both_engines_share(tmp_pat
     assert "4 of 30 numbers with a jackknife error differ by more than 2 combined" in sec
     assert root / "default-dem" / "fig2_avalanche_criterion.json" in report.inputs(root)
     assert study in report.inputs(root)
+
+
+def _friction_study(mus=(0.2, 0.5, 1.0), orientation=(50.0, 51.0, 52.0), repose=(11.0, 14.7, 16.0),
+                    slope=(0.1, -0.2, 0.4), verdict="flat", key="scene.mu"):
+    """A friction study's JSON as `tiltpile study` writes it, its numbers given."""
+    def c(x):
+        return {"estimate": x, "low": x - 0.5, "high": x + 0.5}
+    labels = [f"{m:g}" if m != 1.0 else "1.0" for m in mus]
+    per_value = {}
+    for lab, m, o, r in zip(labels, mus, orientation, repose):
+        numbers = {k: c(1.0) for k in ("theta_first_onset", "repose_box", "z_quiet", "n_m_quiet",
+                                       "quiet_below", "delta", "s_max_near", "rigid_near")}
+        numbers.update(orientation=c(o), repose_surface=c(r),
+                       theta_avalanche=dict(c(r + 7.0), n_runs_with=3))
+        per_value[lab] = {"value": m, "n_runs": 3, "seeds": [0, 1, 2], "theta_rev_deg": round(r + 1),
+                          "repose_piles": "fresh", "numbers": numbers, "per_run": {}}
+    mc = {"mu": list(mus), "measured_deg": list(orientation),
+          "predicted_deg": [45 + 0.5 * math.degrees(math.atan(m)) for m in mus],
+          "fit": {"slope": slope[0], "slope_low": slope[1], "slope_high": slope[2],
+                  "intercept": 45.0, "n_resamples": 999}, "verdict": verdict}
+    return {"figure": "study",
+            "study": {"name": "friction", "key": key, "preset": "default", "runs": 3,
+                      "history": "repose+1", "history_offset_deg": 1.0,
+                      "command": f"tiltpile study --key {key} --values 0.2 0.5 1.0 --preset default "
+                                 "--runs 3 --name friction --history repose+1"},
+            "ensembles": [{"n_grains": 1000, "label": lab} for lab in labels],
+            "numbers": {"key": key, "values": list(mus), "labels": labels, "confidence": 0.95,
+                        "per_value": per_value, "mohr_coulomb": mc if key == "scene.mu" else None}}
+
+
+def test_the_friction_section_answers_mohr_coulomb_and_sets_the_literature_beside_ours(tmp_path):
+    """figures/study-friction/study.json gives the section "Friction": whether the Mohr-Coulomb
+    reading survives (by the fit's verdict), the study's table with each friction's history
+    amplitude, and the literature's angles beside ours at their friction; none without it, or
+    for a study of another key; the report reads the file (its inputs, the Makefile's)."""
+    root = tmp_path / "figures"
+    _write(root, [dict(_fig2(), preset="default", n_grains=1000)])
+    assert "## Friction" not in report.write_report(root, tmp_path / "R.md").read_text()
+    study = root / "study-friction" / "study.json"
+    study.parent.mkdir(parents=True)
+    study.write_text(json.dumps(_friction_study()))
+    assert study in report.inputs(root)
+    sec = report.write_report(root, tmp_path / "R.md").read_text().split("\n## Friction")[1]
+    sec = sec.split("\n## ")[0]
+    assert "**The paper's Mohr-Coulomb reading does not survive a change of friction in our " \
+           "piles:** the clusters' orientation does not move with friction (slope 0.10 " \
+           "[-0.20, 0.40] against Mohr-Coulomb's 1)" in sec
+    assert "the amplitudes (deg): 0.2: 12, 0.5: 16, 1.0: 17." in sec
+    assert "| 0.5 | 3 | 16 |" in sec                     # the study's table
+    assert "| repose angle theta_r | ~15 deg | 14.7 deg (mu = 0.5) |" in sec
+    assert "| avalanche angle theta_a | ~21 deg | 21.7 deg (mu = 0.5) |" in sec
+    assert "11.0 (mu = 0.2), 14.7 (mu = 0.5), 16.0 (mu = 1) deg |" in sec     # the trend row
+    assert "the repose angle changes by +3.7 deg from mu = 0.2 to 0.5 and by +1.3 deg" in sec
+    study.write_text(json.dumps(_friction_study(slope=(0.9, 0.6, 1.3), verdict="consistent")))
+    text = report.write_report(root, tmp_path / "R.md").read_text()
+    assert "**The paper's Mohr-Coulomb reading survives a change of friction in our piles:**" in text
+    study.write_text(json.dumps(_friction_study(key="scene.polydispersity")))
+    assert "## Friction" not in report.write_report(root, tmp_path / "R.md").read_text()

@@ -18,6 +18,7 @@ from tiltpile.outputs import replaced_whole
 from .claims import CLAIMS, RULES
 from . import definitions as _definitions
 from . import engines as _engines
+from . import friction as _friction
 from .judging import AGREES, DISAGREES, MISSING, Claim
 from .scales import preset_dir, render_scales, scale_dirs
 from .studies import CITES, STUDIES, load_studies, render_preparation
@@ -236,7 +237,8 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
     text = render(figs, claims,
                   render_scales(figures_dir) + render_by_scale(figures_dir, claims)
                   + render_preparation(figures_dir)
-                  + _definitions.render(studies.get("definitions"), claims) + engines, studies)
+                  + _definitions.render(studies.get("definitions"), claims) + engines
+                  + _friction.render(_friction.load(scale_dirs(figures_dir)["default"])), studies)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     with replaced_whole(out) as tmp:
@@ -248,8 +250,8 @@ def inputs(figures_dir) -> list[Path]:
     """Every file the report of ``figures_dir`` reads that exists: its ``fig*.json``, the
     Fig. 2's JSON of every scale (:func:`render_scales`), every ``fig*.json`` of the scales
     :func:`render_by_scale` compares, its ``preparation.json`` (:func:`render_preparation`), the
-    default scale's studies (:func:`load_studies`), and the figures of both engines' scales and
-    their pile-against-pile study (:mod:`.engines`). The Makefile's report target lists the same
+    default scale's studies (:func:`load_studies`), the figures of both engines' scales and
+    their pile-against-pile study (:mod:`.engines`), and the friction study (:mod:`.friction`). The Makefile's report target lists the same
     files (tests/workflow/test_build_graph.py checks it)."""
     d = Path(figures_dir)
     root = scale_dirs(d)["default"]
@@ -260,6 +262,7 @@ def inputs(figures_dir) -> list[Path]:
     found += [d / "preparation.json"] + [root / f for f in STUDIES.values()]
     found += [p for s in _engines.PAIR for p in sorted(preset_dir(d, s).glob("fig*.json"))]
     found += [preset_dir(d, _engines.PAIR[1]) / _engines.STUDY]
+    found += [root / _friction.STUDY]
     out = []
     for p in found:
         if p.exists() and p not in out:

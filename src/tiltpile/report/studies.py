@@ -236,38 +236,53 @@ def render_study(doc: dict) -> list[str]:
              f"[{100 * n['confidence']:g}% bootstrap interval over runs]; repose angles by "
              "`tiltpile repose` (" + ("fresh piles" if hist != "preset" else "the study's piles")
              + ").", ""]
+    return lines + study_table(doc) + mohr_coulomb_lines(n.get("mohr_coulomb"))
 
-    def cell(c, fmt):
-        m, lo, hi = (num(c.get(f)) for f in ("estimate", "low", "high"))
-        if not math.isfinite(m):
-            return "n/a"
-        band = f" [{lo:{fmt}}, {hi:{fmt}}]" if math.isfinite(lo) and math.isfinite(hi) else ""
-        extra = f" ({c['n_runs_with']})" if "n_runs_with" in c else ""
-        return f"{m:{fmt}}{band}{extra}"
 
-    lines.append(f"| {key} | runs | theta_rev (deg) | "
-                 + " | ".join(h for _, h, _ in STUDY_COLUMNS) + " |")
-    lines.append("|---|---|---|" + "---|" * len(STUDY_COLUMNS))
+def _cell(c: dict, fmt: str) -> str:
+    m, lo, hi = (num(c.get(f)) for f in ("estimate", "low", "high"))
+    if not math.isfinite(m):
+        return "n/a"
+    band = f" [{lo:{fmt}}, {hi:{fmt}}]" if math.isfinite(lo) and math.isfinite(hi) else ""
+    extra = f" ({c['n_runs_with']})" if "n_runs_with" in c else ""
+    return f"{m:{fmt}}{band}{extra}"
+
+
+def study_table(doc: dict) -> list[str]:
+    """Markdown rows of a study's table: one row per value, mean [interval] of every number."""
+    n = doc["numbers"]
+    key = n["key"]
+    lines = [f"| {key} | runs | theta_rev (deg) | "
+             + " | ".join(h for _, h, _ in STUDY_COLUMNS) + " |",
+             "|---|---|---|" + "---|" * len(STUDY_COLUMNS)]
     for lab in n["labels"]:
         pv = n["per_value"][lab]
         rev = pv.get("theta_rev_deg")
         lines.append(f"| {lab} | {pv['n_runs']} | {'preset' if rev is None else f'{rev:g}'} | "
-                     + " | ".join(cell(pv["numbers"][k], f) for k, _, f in STUDY_COLUMNS) + " |")
-    mc = n.get("mohr_coulomb")
-    if mc:
-        f = mc["fit"]
-        pairs = "; ".join(f"mu = {m:g}: {show(num(y), '.1f')} against {p:.1f}"
-                          for m, y, p in zip(mc["mu"], mc["measured_deg"], mc["predicted_deg"]))
-        band = (f" [{f['slope_low']:.2f}, {f['slope_high']:.2f}]"
-                if math.isfinite(num(f.get("slope_low"))) else "")
-        word = {"consistent": "consistent with Mohr-Coulomb's slope 1",
-                "flat": "consistent with no dependence on friction, not with Mohr-Coulomb's slope 1",
-                "shallower": "below Mohr-Coulomb's slope 1 (and above 0)",
-                "steeper": "above Mohr-Coulomb's slope 1",
-                "undetermined": "undetermined (no interval: too few runs)"}[mc["verdict"]]
-        lines += ["", "**Mohr-Coulomb.** The clusters' orientation to gravity (Fig. 3's: quiet "
-                  "clusters of >= 5 grains, pooled) against 45 + 1/2 atan(mu) deg: " + pairs
-                  + f". Least-squares slope of measured against predicted {show(num(f['slope']), '.2f')}"
-                  + band + f" (runs resampled within each value, {f['n_resamples']} resamples), "
-                  f"intercept {show(num(f['intercept']), '.1f')} deg: {word}."]
+                     + " | ".join(_cell(pv["numbers"][k], f) for k, _, f in STUDY_COLUMNS) + " |")
     return lines
+
+
+#: what the slope of the clusters' orientation against Mohr-Coulomb's angle says, per verdict
+#: of :func:`tiltpile.analysis.mohr_coulomb.verdict`
+MC_WORDS = {"consistent": "consistent with Mohr-Coulomb's slope 1",
+            "flat": "consistent with no dependence on friction, not with Mohr-Coulomb's slope 1",
+            "shallower": "below Mohr-Coulomb's slope 1 (and above 0)",
+            "steeper": "above Mohr-Coulomb's slope 1",
+            "undetermined": "undetermined (no interval: too few runs)"}
+
+
+def mohr_coulomb_lines(mc: dict | None) -> list[str]:
+    """The Mohr-Coulomb paragraph of a friction study (none for another key)."""
+    if not mc:
+        return []
+    f = mc["fit"]
+    pairs = "; ".join(f"mu = {m:g}: {show(num(y), '.1f')} against {p:.1f}"
+                      for m, y, p in zip(mc["mu"], mc["measured_deg"], mc["predicted_deg"]))
+    band = (f" [{f['slope_low']:.2f}, {f['slope_high']:.2f}]"
+            if math.isfinite(num(f.get("slope_low"))) else "")
+    return ["", "**Mohr-Coulomb.** The clusters' orientation to gravity (Fig. 3's: quiet "
+            "clusters of >= 5 grains, pooled) against 45 + 1/2 atan(mu) deg: " + pairs
+            + f". Least-squares slope of measured against predicted {show(num(f['slope']), '.2f')}"
+            + band + f" (runs resampled within each value, {f['n_resamples']} resamples), "
+            f"intercept {show(num(f['intercept']), '.1f')} deg: {MC_WORDS[mc['verdict']]}."]
