@@ -644,3 +644,60 @@ def test_the_friction_section_answers_mohr_coulomb_and_sets_the_literature_besid
     assert "**The paper's Mohr-Coulomb reading survives a change of friction in our piles:**" in text
     study.write_text(json.dumps(_friction_study(key="scene.polydispersity")))
     assert "## Friction" not in report.write_report(root, tmp_path / "R.md").read_text()
+
+
+def test_the_history_rate_section_decides_against_what_chance_moves(tmp_path):
+    """paper-fast against paper: no section without the study; with it, the pile table, the
+    moved count against the null's, the claims whose verdict differs between the two sides'
+    documents, and the decision: preliminary before the preset's 16 seeds, then passes only
+    when the count is within chance's 95th percentile and every verdict is the same."""
+    from tiltpile.report import history_rate as hr
+
+    root = tmp_path / "figures"
+    _write(root, [dict(_fig2(), preset="default", n_grains=1000)])
+    assert "## The history at 10x" not in report.write_report(root, tmp_path / "R.md").read_text()
+    fast = root / "paper-fast" / "same-piles"
+    study = dict(_same_piles_study(), ref="paper", label="paper-fast", n_moved=20,
+                 n_with_error=149, moved=[{"figure": "fig3_clusters_failure", "key": "n_peaks"}],
+                 null={"flips": 40, "seed": 0, "counts": [], "median": 14.0, "p95": 24.0,
+                       "observed": 20, "p_value": 0.2})
+    fast.mkdir(parents=True)
+    (fast / "same_piles.json").write_text(json.dumps(study))
+    paper_side = dict(_fig2(), preset="paper", n_grains=4000,
+                      cost={"sweeps_per_run": 95.9e6, "seconds_per_run": 7540.0, "runs_timed": 44})
+    fast_side = dict(_fig2(), preset="paper-fast", n_grains=4000,
+                     cost={"sweeps_per_run": 38.8e6, "seconds_per_run": 6500.0, "runs_timed": 6})
+    _write(fast / "paper", [paper_side])
+    _write(fast / "paper-fast", [fast_side])
+    read = report.inputs(root)
+    assert fast / "same_piles.json" in read and fast / "paper-fast" / "fig2_avalanche_criterion.json" in read
+
+    def section():
+        return report.write_report(root, tmp_path / "R.md").read_text().split(
+            "## The history at 10x the ramp's rate")[1].split("\n## ")[0]
+
+    sec = section()
+    assert "3 of the 16 seeds the decision waits for have run so far: **preliminary**." in sec
+    assert "| first 2% onset (deg) | 11.00 | 12.00 | +1.00 [+1.00, +1.00] (3) |" in sec
+    assert ("20 of 149 figure numbers with a jackknife error move by more than 2 combined standard "
+            "errors; chance alone moves a median of 14 (95th percentile 24) in 40 random "
+            "exchanges of each seed's two runs (p = 0.20 for 20 or more)") in sec
+    assert "Moved: fig3.n_peaks." in sec
+    assert "the same verdict for every claim." in sec
+    assert "**Decision: not yet** (3 of 16 seeds). So far paper-fast would pass" in sec
+    assert "paper 95.9 M sweeps per run, 2.09 h of wall time per run (44 runs timed whole); " \
+           "paper-fast 38.8 M sweeps per run" in sec
+    # sixteen seeds, a claim that changes its verdict: fails
+    study["seeds"] = list(range(16))
+    (fast / "same_piles.json").write_text(json.dumps(study))
+    _write(fast / "paper-fast", [dict(fast_side, numbers=dict(fast_side["numbers"],
+                                                             z_quiet_run_mean=3.5,
+                                                             z_quiet_run_mean_ci_low=3.47,
+                                                             z_quiet_run_mean_ci_high=3.53))])
+    sec = section()
+    by = {c.key: c.text for c in report.CLAIMS}
+    assert f"different verdicts for {by['z_mean']} (paper" in sec
+    assert "**Decision: paper-fast fails: its history's rate moves the figures**" in sec
+    assert hr.decision(dict(study, n_moved=30), 0) == "fails"
+    assert hr.decision(dict(study, n_moved=24), 0) == "passes"
+    assert hr.decision(dict(study, null=None), 0) == "open"

@@ -73,6 +73,48 @@ def test_a_known_shift_is_measured(ens):
     assert t.loc["theta_m_mean", "shift"] == 0.0 and t.loc["theta_m_mean", "sigma"] == 0.0
 
 
+def test_mixed_ensembles_exchange_the_runs_of_the_flipped_seeds(ens, tmp_path):
+    """No flip gives the two ensembles back; a flip exchanges that seed's runs (and the run file
+    its pictures read) and nothing else."""
+    f = ens.frames.copy()
+    f["z"] = f["z"] + 0.1
+    other = replace(ens, frames=f)
+    x, y = sp.mixed(ens, other, [False] * len(ens.seeds), tmp_path)
+    pd_eq = lambda u, v: u.reset_index(drop=True).equals(v.reset_index(drop=True))  # noqa: E731
+    assert pd_eq(x.frames, ens.frames) and pd_eq(y.frames, other.frames)
+    flip = [k == 1 for k in range(len(ens.seeds))]
+    x, y = sp.mixed(ens, other, flip, tmp_path)
+    s = ens.seeds[1]
+    for u, a, b in ((x, other, ens), (y, ens, other)):
+        assert pd_eq(u.frames[u.frames["run"] == s], a.frames[a.frames["run"] == s])
+        rest = u.frames[u.frames["run"] != s]
+        assert pd_eq(rest, b.frames[b.frames["run"] != s])
+        assert u.run_path(s).resolve() == ens.run_path(s).resolve()   # both sides' file here
+    with pytest.raises(ValueError, match="flips"):
+        sp.mixed(ens, other, [True], tmp_path)
+
+
+def test_the_null_counts_what_chance_moves(ens, tmp_path):
+    """An ensemble against itself: every exchange moves nothing, p = 1. Against a copy with every
+    z raised by 0.1, the observed count is the largest there is (each exchange moves part of the
+    shift back), so no exchange reaches it unless it exchanges no seed or all of them."""
+    table, _, _ = sp.ensemble_against_ensemble(ens, ens, FAST)
+    null = sp.null_moved(ens, ens, table, 3, stems=FAST, scratch=tmp_path)
+    assert null["counts"] == [0, 0, 0] and null["observed"] == 0 and null["p_value"] == 1.0
+    f = ens.frames.copy()
+    f["z"] = f["z"] + 0.1
+    shifted = replace(ens, frames=f)
+    table, _, _ = sp.ensemble_against_ensemble(ens, shifted, ("fig2_avalanche_criterion",))
+    null = sp.null_moved(ens, shifted, table, 6, stems=("fig2_avalanche_criterion",),
+                         scratch=tmp_path)
+    assert null["observed"] > 0 and len(null["counts"]) == 6
+    assert max(null["counts"]) <= null["observed"]
+    assert null == sp.null_moved(ens, shifted, table, 6, stems=("fig2_avalanche_criterion",),
+                                 scratch=tmp_path)        # the same flips: the same counts
+    with pytest.raises(ValueError, match="flips"):
+        sp.null_moved(ens, ens, table, 0)
+
+
 def test_pile_against_pile(ens):
     docs = sp.figure_documents(ens, ("fig2_avalanche_criterion",))
     n2 = docs["fig2_avalanche_criterion"]["numbers"]

@@ -24,6 +24,10 @@ def add_parser(sub) -> None:
     p.add_argument("--label", default=None, help="name of DIR in the output (same default)")
     p.add_argument("--seeds", type=int, default=None, metavar="N",
                    help="the first N common seeds only (default: every common seed)")
+    p.add_argument("--null", type=int, default=0, metavar="K",
+                   help="also count the figure numbers that move by chance: K random exchanges "
+                        "of the two runs of each seed, each scored like the real pair (two "
+                        "evaluations of the figures per exchange; default 0: none)")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
@@ -64,6 +68,8 @@ def run(args) -> int:
     from tiltpile.figures import same_piles as sp
     from tiltpile.paths import check_output
 
+    if args.null < 0:
+        raise ConfigError(f"--null must be 0 or more, got {args.null}")
     if args.seeds is not None and args.seeds < 3:
         raise ConfigError(f"--seeds must be at least 3 (the jackknife needs 3 runs), got {args.seeds}")
     if args.ref.resolve() == args.dir.resolve():
@@ -84,11 +90,18 @@ def run(args) -> int:
     ref, ens = sp.subset(ref, seeds), sp.subset(ens, seeds)
     say = None if args.quiet else (lambda line: print(f"tiltpile same-piles: {line}", file=sys.stderr,
                                                       flush=True))
-    doc = sp.study(ref, ens, ref_label, label, progress=say)
+    import tempfile
+    with tempfile.TemporaryDirectory(prefix="tiltpile-same-piles-") as scratch:
+        doc = sp.study(ref, ens, ref_label, label, progress=say, null_flips=args.null,
+                       scratch=scratch)
     path = sp.write_study(doc, args.out)
     print(f"{label} against {ref_label} on {len(seeds)} seeds: {doc['n_moved']} of "
           f"{doc['n_with_error']} figure numbers with an error moved by more than "
           f"{sp.SIGMA_LIMIT:g} standard errors ({doc['n_numbers']} numbers in all); {path}")
+    if doc["null"]:
+        n = doc["null"]
+        print(f"  by chance ({n['flips']} exchanges of each seed's two runs): median "
+              f"{n['median']:g}, 95th percentile {n['p95']:g}; p = {n['p_value']:.3f}")
     for c, d in doc["pile_against_pile"]["difference"].items():
         if math.isfinite(d["mean"]):
             print(f"  {c}: {d['mean']:+.3g} [{d['ci_low']:+.3g}, {d['ci_high']:+.3g}] over {d['n']} seeds")

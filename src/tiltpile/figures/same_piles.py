@@ -301,15 +301,99 @@ def pile_against_pile(ref, ens, fig2_ref: dict, fig2: dict, confidence: float = 
 
 
 # ----------------------------------------------------------------------------------------------
+# how many numbers move by chance: the paired sign-flip null
+
+
+def mixed(a, b, flip, scratch=None):
+    """Two ensembles of the seeds ``a`` and ``b`` share, with the runs of the seeds where ``flip``
+    is true exchanged: the first holds b's run of such a seed, the second a's. Run files (for the
+    figures' pictures) are reached through links in ``scratch``/{0,1} when the ensembles were
+    loaded from run files; from records, through the records' paths."""
+    import os
+
+    seeds = common_seeds(a, b)
+    if len(flip) != len(seeds):
+        raise ValueError(f"{len(flip)} flips for {len(seeds)} common seeds")
+    swap = {s for s, f in zip(seeds, flip) if f}
+    out = []
+    for k, (x, y) in enumerate(((a, b), (b, a))):
+        keep_x = [s for s in seeds if s not in swap]
+        take_y = [s for s in seeds if s in swap]
+        fr = pd.concat([x.frames[x.frames["run"].isin(keep_x)], y.frames[y.frames["run"].isin(take_y)]])
+        cl = pd.concat([x.clusters[x.clusters["run"].isin(keep_x)],
+                        y.clusters[y.clusters["run"].isin(take_y)]])
+        fr = fr.sort_values(["run", "frame"], kind="stable").reset_index(drop=True)
+        cl = cl.sort_values(["run", "frame"], kind="stable").reset_index(drop=True)
+        records = {s: (y if s in swap else x).records[s] for s in seeds
+                   if s in (y if s in swap else x).records}
+        data_dir = x.data_dir
+        if not records and scratch is not None:
+            data_dir = Path(scratch) / str(k)
+            data_dir.mkdir(parents=True, exist_ok=True)
+            for s in seeds:
+                link = data_dir / f"run_{s:04d}.h5"
+                if link.is_symlink() or link.exists():
+                    link.unlink()
+                os.symlink((y if s in swap else x).run_path(s).resolve(), link)
+        meta = dict(x.meta, n_runs=len(seeds), seeds=list(seeds))
+        out.append(replace(x, data_dir=data_dir, frames=fr, clusters=cl, seeds=list(seeds),
+                           meta=meta, records=records))
+    return out[0], out[1]
+
+
+def null_moved(ref, ens, table: pd.DataFrame, flips: int, seed: int = 0, stems=FIGURES,
+               notebooks_dir="notebooks", scratch=None, progress=None) -> dict:
+    """The number of figure numbers that move by more than SIGMA_LIMIT when nothing but chance
+    separates the two ensembles: ``flips`` random exchanges of the two runs of each seed (each
+    seed's pair exchanged with probability 1/2, a numpy generator of ``seed``), each scored as
+    :func:`ensemble_against_ensemble` scores the real pair, its shift over the real pair's
+    combined standard error (``table``'s se_ref, se), so that each flip costs two evaluations of
+    the figures instead of 2 (N + 1). Under the hypothesis that the two settings give the same
+    piles' statistics the runs of a seed are exchangeable, and the observed count is a draw of
+    this distribution. Returns the counts, their median and 95th percentile, and the one-sided p
+    value of the observed count, (1 + #(count >= observed)) / (1 + flips)."""
+    if flips < 1:
+        raise ValueError(f"flips must be at least 1, got {flips}")
+    seeds = common_seeds(ref, ens)
+    a, b = subset(ref, seeds), subset(ens, seeds)
+    comb = {f"{r['figure']}.{r['key']}": math.hypot(r["se_ref"], r["se"])
+            for r in table.to_dict("records")}
+    rng = np.random.default_rng(seed)
+    say = progress or (lambda line: None)
+    counts = []
+    for i in range(flips):
+        flip = rng.integers(0, 2, len(seeds)).astype(bool)
+        say(f"null: flip {i + 1} of {flips} ({int(flip.sum())} of {len(seeds)} seeds exchanged)")
+        x, y = mixed(a, b, flip, scratch)
+        fa = _all_scalars(figure_documents(x, stems, notebooks_dir))
+        fb = _all_scalars(figure_documents(y, stems, notebooks_dir))
+        n = 0
+        for key, c in comb.items():
+            if key in fa and key in fb and math.isfinite(c):
+                sig = _in_sigma(fb[key] - fa[key], c)
+                n += bool(math.isfinite(sig) and abs(sig) > SIGMA_LIMIT)
+        counts.append(n)
+    observed = int(table["moved"].sum())
+    c = np.array(counts)
+    return {"flips": flips, "seed": seed, "counts": counts, "median": float(np.median(c)),
+            "p95": float(np.percentile(c, 95)), "observed": observed,
+            "p_value": float((1 + (c >= observed).sum()) / (1 + flips))}
+
+
+# ----------------------------------------------------------------------------------------------
 # the study
 
 
-def study(ref, ens, ref_label: str, label: str, notebooks_dir="notebooks", progress=None) -> dict:
+def study(ref, ens, ref_label: str, label: str, notebooks_dir="notebooks", progress=None,
+          null_flips: int = 0, scratch=None) -> dict:
     """The whole comparison (module docstring) as one JSON-able document: the labels, the
     common seeds, ``pile_against_pile``, the ensemble table as rows, the count of numbers moved by
-    more than SIGMA_LIMIT, and ``documents``: {label: {stem: figure document}} of both on the
-    common seeds (for the report's judges)."""
+    more than SIGMA_LIMIT, with ``null_flips`` > 0 the counts chance gives (:func:`null_moved`,
+    under ``null``), and ``documents``: {label: {stem: figure document}} of both on the common
+    seeds (for the report's judges)."""
     table, na, nb = ensemble_against_ensemble(ref, ens, FIGURES, notebooks_dir, progress)
+    null = (null_moved(ref, ens, table, null_flips, notebooks_dir=notebooks_dir, scratch=scratch,
+                       progress=progress) if null_flips else None)
     seeds = common_seeds(ref, ens)
     a, b = subset(ref, seeds), subset(ens, seeds)
     fig2 = "fig2_avalanche_criterion"
@@ -321,6 +405,7 @@ def study(ref, ens, ref_label: str, label: str, notebooks_dir="notebooks", progr
             "n_moved": int(table["moved"].sum()),
             "moved": table.loc[table["moved"], ["figure", "key"]].to_dict("records"),
             "pile_against_pile": pp,
+            "null": null,
             "numbers": table.to_dict("records"),
             "documents": {ref_label: na, label: nb}}
 

@@ -25,6 +25,8 @@ One concern per module; the names of ``__all__`` import from ``tiltpile.report``
   each definition of the definitions study (``tiltpile definitions``);
 - :mod:`.engines`: the section "Same piles, another model": the default piles in the second
   engine (the soft-sphere DEM), pile against pile, and which disagreements both engines share;
+- :mod:`.history_rate`: the section "The history at 10x the ramp's rate": paper-fast against
+  paper pile against pile, the figure numbers against what chance moves, the decision;
 - :mod:`.friction`: the section "Friction": the friction study, the Mohr-Coulomb reading tested
   across frictions, and the angles beside the literature's;
 - :mod:`.document`: loading, rendering and writing the report, and the files it reads.

@@ -19,6 +19,7 @@ from .claims import CLAIMS, RULES
 from . import definitions as _definitions
 from . import engines as _engines
 from . import friction as _friction
+from . import history_rate as _rate
 from .judging import AGREES, DISAGREES, MISSING, Claim
 from .scales import preset_dir, render_scales, scale_dirs
 from .studies import CITES, STUDIES, load_studies, render_preparation
@@ -234,10 +235,14 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
     pair = {s: load_figures(preset_dir(figures_dir, s)) for s in _engines.PAIR}
     engines = _engines.render(_engines.load(preset_dir(figures_dir, _engines.PAIR[1])),
                               {s: judge_all(f, claims) for s, f in pair.items() if f}, claims)
+    fast = preset_dir(figures_dir, _rate.PAIR[1])
+    sides = {s: load_figures(d) for s, d in _rate.side_dirs(fast).items()}
+    rate = _rate.render(_rate.load(fast), {s: judge_all(f, claims) for s, f in sides.items() if f},
+                        claims, {s: f.get("fig2_avalanche_criterion") for s, f in sides.items()})
     text = render(figs, claims,
                   render_scales(figures_dir) + render_by_scale(figures_dir, claims)
                   + render_preparation(figures_dir)
-                  + _definitions.render(studies.get("definitions"), claims) + engines
+                  + _definitions.render(studies.get("definitions"), claims) + engines + rate
                   + _friction.render(_friction.load(scale_dirs(figures_dir)["default"])), studies)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -251,7 +256,8 @@ def inputs(figures_dir) -> list[Path]:
     Fig. 2's JSON of every scale (:func:`render_scales`), every ``fig*.json`` of the scales
     :func:`render_by_scale` compares, its ``preparation.json`` (:func:`render_preparation`), the
     default scale's studies (:func:`load_studies`), the figures of both engines' scales and
-    their pile-against-pile study (:mod:`.engines`), and the friction study (:mod:`.friction`). The Makefile's report target lists the same
+    their pile-against-pile study (:mod:`.engines`), the paper-fast study and its two sides' figures
+    (:mod:`.history_rate`), and the friction study (:mod:`.friction`). The Makefile's report target lists the same
     files (tests/workflow/test_build_graph.py checks it)."""
     d = Path(figures_dir)
     root = scale_dirs(d)["default"]
@@ -263,6 +269,9 @@ def inputs(figures_dir) -> list[Path]:
     found += [p for s in _engines.PAIR for p in sorted(preset_dir(d, s).glob("fig*.json"))]
     found += [preset_dir(d, _engines.PAIR[1]) / _engines.STUDY]
     found += [root / _friction.STUDY]
+    fast = preset_dir(d, _rate.PAIR[1])
+    found += [fast / _rate.STUDY] + [p for s in _rate.side_dirs(fast).values()
+                                     for p in sorted(s.glob("fig*.json"))]
     out = []
     for p in found:
         if p.exists() and p not in out:

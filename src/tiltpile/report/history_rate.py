@@ -1,0 +1,132 @@
+"""The report's section "The history at 10x the ramp's rate": the ``paper-fast`` piles (the paper
+preset with its history's legs at 0.01 deg per step) against the committed ``paper`` runs of the
+same seeds, pile against pile and every figure number ensemble against ensemble (``tiltpile
+same-piles figures/paper/records figures/paper-fast/records --null K``, written to
+``figures/paper-fast/same-piles/``), the paper's claims judged on both sides' figure documents,
+the decision and the cost.
+
+The decision rule. The issue that asked for paper-fast set it as: paper-fast passes if no figure
+number moves by more than 2 of its standard errors and the verdicts of the paper's claims are the
+same. With ~150 numbers and 2 standard errors, chance alone moves several of them (a t
+distribution of N - 1 degrees of freedom puts 6-10% of its mass beyond 2), so that rule fails
+for any two ensembles of different runs. The rule applied here keeps its intent: the count of
+moved numbers must be within what chance moves, measured by exchanging the two runs of each
+seed at random (:func:`tiltpile.figures.same_piles.null_moved`; at most its 95th percentile),
+and every verdict must be the same. The literal rule's count is reported beside it.
+"""
+
+from __future__ import annotations
+
+import json
+import math
+from pathlib import Path
+
+from tiltpile import config as cfgmod
+
+from .engines import pile_table
+from .judging import MISSING, Claim
+from .rigidity import BEYOND
+
+#: (the reference scale, the scale with the faster history)
+PAIR = ("paper", "paper-fast")
+#: the study, below the faster scale's figures directory; each side's figure documents beside it
+STUDY = Path("same-piles") / "same_piles.json"
+#: the seeds the decision waits for (the preset's ensemble)
+TARGET = cfgmod.preset_info(PAIR[1]).runs
+
+
+def load(figures_dir) -> dict | None:
+    """The study of the faster scale's figures directory (None without one)."""
+    p = Path(figures_dir) / STUDY
+    return json.loads(p.read_text()) if p.is_file() else None
+
+
+def side_dirs(figures_dir) -> dict[str, Path]:
+    """{label: the directory of that side's figure documents} of the study."""
+    d = (Path(figures_dir) / STUDY).parent
+    return {label: d / label for label in PAIR}
+
+
+def differing(judged: dict[str, list], claims: list[Claim]) -> list[str]:
+    """The paper's claims whose verdict is not the same on both sides (claim (ref; other))."""
+    ref, other = (judged[s] for s in PAIR)
+    out = []
+    for c, a, b in zip(claims, ref, other):
+        if c.paper == BEYOND or MISSING in (a[2], b[2]) or a[2] == b[2]:
+            continue
+        out.append(f"{c.text} ({PAIR[0]} {a[1]}, {a[2]}; {PAIR[1]} {b[1]}, {b[2]})")
+    return out
+
+
+def decision(study: dict, n_differ: int) -> str:
+    """"passes", "fails", or "open" (no null measured); the rule: module docstring."""
+    null = study.get("null")
+    if not null:
+        return "open"
+    return "passes" if study["n_moved"] <= null["p95"] and n_differ == 0 else "fails"
+
+
+def _cost(docs: dict[str, dict]) -> str:
+    parts = []
+    for label in PAIR:
+        cost = (docs.get(label) or {}).get("cost") or {}
+        sw, sec = cost.get("sweeps_per_run"), cost.get("seconds_per_run")
+        if sw is None:
+            continue
+        wall = f", {sec / 3600:.2f} h of wall time per run ({cost.get('runs_timed')} runs timed whole)" \
+            if sec else ""
+        parts.append(f"{label} {sw / 1e6:.1f} M sweeps per run{wall}")
+    return "; ".join(parts)
+
+
+def render(study: dict | None, judged: dict[str, list], claims: list[Claim],
+           fig2_docs: dict[str, dict] | None = None) -> list[str]:
+    """Markdown lines of the section (none without the study)."""
+    if study is None:
+        return []
+    n = len(study["seeds"])
+    lines = ["", "## The history at 10x the ramp's rate: paper-fast against paper", "",
+             f"The paper's piles with Deboeuf's history tilted at 0.01 deg per step instead of the "
+             f"ramp's 0.001 (preset `{PAIR[1]}`), against the committed `{PAIR[0]}` runs of the "
+             f"same seeds, which deposit the same piles (`tiltpile same-piles`). {n} of the "
+             f"{TARGET} seeds the decision waits for "
+             + ("have run." if n >= TARGET else "have run so far: **preliminary**.") , "",
+             "Pile against pile: the mean of each over the seeds, and the mean paired difference "
+             "(the packing at frame 0 is not in the paper's records).", ""]
+    lines += pile_table(study)
+    null = study.get("null")
+    moved = (f"{study['n_moved']} of {study['n_with_error']} figure numbers with a jackknife "
+             f"error move by more than {study['sigma_limit']:g} combined standard errors")
+    if null:
+        lines += ["", f"Every figure number ensemble against ensemble: {moved}; chance alone "
+                  f"moves a median of {null['median']:g} (95th percentile {null['p95']:g}) in "
+                  f"{null['flips']} random exchanges of each seed's two runs (p = "
+                  f"{null['p_value']:.2f} for {study['n_moved']} or more)."]
+    else:
+        lines += ["", f"Every figure number ensemble against ensemble: {moved}; what chance "
+                  "moves is not measured (`tiltpile same-piles --null K`)."]
+    names = ", ".join(f"{m['figure'].split('_')[0]}.{m['key']}" for m in study.get("moved", []))
+    if names:
+        lines += ["", f"Moved: {names}."]
+    if all(s in judged for s in PAIR):
+        diff = differing(judged, claims)
+        lines += ["", "The paper's claims on both sides' figures: "
+                  + ("the same verdict for every claim." if not diff else
+                     "different verdicts for " + "; ".join(diff) + ".")]
+        word = decision(study, len(diff))
+        rule = ("the count of moved numbers within chance's 95th percentile and every verdict "
+                "the same (the literal rule, no number moved, fails by chance alone: this "
+                "section's module docstring)")
+        if n < TARGET:
+            lines += ["", f"**Decision: not yet** ({n} of {TARGET} seeds). So far paper-fast "
+                      f"{'would pass' if word == 'passes' else 'would fail' if word == 'fails' else 'is undecided'}"
+                      f" by the rule: {rule}."]
+        else:
+            verdict = {"passes": "paper-fast passes: it stands in for paper in new paper-scale "
+                                 "studies", "fails": "paper-fast fails: its history's rate moves "
+                                 "the figures", "open": "open: measure what chance moves"}[word]
+            lines += ["", f"**Decision: {verdict}** (rule: {rule})."]
+    cost = _cost(fig2_docs or {})
+    if cost:
+        lines += ["", f"Cost (each ensemble's own runs, as their records time them): {cost}."]
+    return lines
