@@ -537,6 +537,11 @@ def test_the_per_scale_table_flags_a_threshold_one_run_moves():
     firm = {"ke_threshold": 0.04, "stability": {"ke_threshold": {
         "values": [0.04], "counts": [50], "firm": True, "n": 50}}}
     assert _loo_flag(firm, "ke_threshold") == "" and _loo_flag({}, "ke_threshold") == ""
+    # left out, three runs take the threshold away (default-dem's): said, not left blank
+    gone = {"ke_threshold": 2.5e-4, "stability": {"ke_threshold": {
+        "per_run_left_out": [2.5e-4, None, 2.5e-4, 2.5e-4, None, None], "values": [2.5e-4],
+        "counts": [3], "firm": False, "n": 6}}}
+    assert _loo_flag(gone, "ke_threshold") == " (unstable: none for 3 of 6 runs left out)"
 
 
 def _same_piles_study(seeds=(0, 1, 2)):

@@ -97,6 +97,9 @@ def _loo_flag(n: dict, key: str) -> str:
     other = [f"{_f(v, '.1e')} for {k} of {st.get('n')}" for v, k in zip(st.get("values", []),
                                                                        st.get("counts", []))
              if v != full]
+    undefined = sum(1 for v in st.get("per_run_left_out", []) if v is None)
+    if undefined:   # no threshold at all with that run left out
+        other.append(f"none for {undefined} of {st.get('n')}")
     kind = "bistable" if len(st.get("values", [])) == 2 else "unstable"
     return f" ({kind}: {', '.join(other)} runs left out)"
 
