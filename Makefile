@@ -285,7 +285,7 @@ $(FIG_JSON): $(FIGURES)/%.json: notebooks/%.ipynb src/tiltpile/figures/$$(call f
 # scale) and the preparation and <z> studies of the default scale's directory. The scales are
 # config.PRESET_TABLE's (report "fig2" or "claims"; the default scale, figures/, besides these),
 # as are RUNS_<preset> above: make cannot read it, tests/workflow/test_presets.py equates them.
-REPORT_SCALES := smoke default-fresh default-dem paper paper-fresh
+REPORT_SCALES := smoke default-fresh default-dem paper paper-fresh paper-fast
 REPORT_COMPARED := default-fresh default-dem paper paper-fresh
 REPORT_ROOT := $(if $(filter $(REPORT_SCALES),$(notdir $(FIGURES))),$(patsubst %/,%,$(dir $(FIGURES))),$(FIGURES))
 REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparation.json \

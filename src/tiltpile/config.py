@@ -64,7 +64,7 @@ PRESET_TABLE = (
     Preset("default-dem", 6, "figures/default-dem", "claims"),
     Preset("paper", 50, "figures/paper", "claims"),
     Preset("paper-fresh", 50, "figures/paper-fresh", "claims"),
-    Preset("paper-fast", 16, "figures/paper-fast", ""),
+    Preset("paper-fast", 16, "figures/paper-fast", "fig2"),
     Preset("paper-fast-dem", 3, "figures/paper-fast-dem", ""),
 )
 PRESETS = tuple(p.name for p in PRESET_TABLE)

@@ -115,8 +115,8 @@ def render(study: dict | None, judged: dict[str, list], claims: list[Claim],
                      "different verdicts for " + "; ".join(diff) + ".")]
         word = decision(study, len(diff))
         rule = ("the count of moved numbers within chance's 95th percentile and every verdict "
-                "the same (the literal rule, no number moved, fails by chance alone: this "
-                "section's module docstring)")
+                "the same; the literal rule, no number moved, fails by chance alone with "
+                f"{study['n_with_error']} numbers")
         if n < TARGET:
             lines += ["", f"**Decision: not yet** ({n} of {TARGET} seeds). So far paper-fast "
                       f"{'would pass' if word == 'passes' else 'would fail' if word == 'fails' else 'is undecided'}"
@@ -125,7 +125,7 @@ def render(study: dict | None, judged: dict[str, list], claims: list[Claim],
             verdict = {"passes": "paper-fast passes: it stands in for paper in new paper-scale "
                                  "studies", "fails": "paper-fast fails: its history's rate moves "
                                  "the figures", "open": "open: measure what chance moves"}[word]
-            lines += ["", f"**Decision: {verdict}** (rule: {rule})."]
+            lines += ["", f"**Decision: {verdict}** (the rule: {rule})."]
     cost = _cost(fig2_docs or {})
     if cost:
         lines += ["", f"Cost (each ensemble's own runs, as their records time them): {cost}."]
