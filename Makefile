@@ -477,7 +477,8 @@ definition-records: | $(STAMP)
 # cycled twice to r + D deg rounded to the whole degree (the amplitudes in the JSON). A bad key
 # or value stops it before anything runs, naming it. The friction study (about 5.5 core-hours):
 # `make study KEY=scene.mu VALUES="0.2 0.4 0.5 0.8 1.0" NAME=friction HISTORY=repose+1 WORKERS=2`.
-# The runs and repose angles run first, the analysis after them with ANALYSIS_ENV.
+# The runs and repose angles run first, the analysis after them with ANALYSIS_ENV. RECORDS_ONLY=1
+# runs nothing: the records of the values whose runs are done, to commit them while the rest runs.
 KEY ?=
 VALUES ?=
 HISTORY ?= preset
@@ -491,5 +492,9 @@ STUDY_ARGS = --key '$(KEY)' --values $(foreach v,$(VALUES),'$(v)') --preset $(PR
 study: | $(STAMP)
 	@test -n "$(strip $(KEY))" -a -n "$(strip $(VALUES))" || { echo "make study: give KEY=section.key and VALUES=\"v1 v2 ...\""; exit 2; }
 	@test -n "$(RUNS)" || { echo "unknown PRESET=$(PRESET): give RUNS=M"; exit 2; }
+ifeq ($(RECORDS_ONLY),)
 	$(PY) -m tiltpile study $(STUDY_ARGS) --runs-only
 	$(ANALYSIS_ENV) $(PY) -m tiltpile study $(STUDY_ARGS)
+else
+	$(ANALYSIS_ENV) $(PY) -m tiltpile study $(STUDY_ARGS) --records-only
+endif

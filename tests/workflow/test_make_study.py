@@ -87,6 +87,22 @@ def test_without_the_run_files_the_study_is_rebuilt_from_its_records(study, tmp_
     assert new == json.loads((d / "figures" / "study.json").read_text())["numbers"]
 
 
+def test_records_only_writes_the_done_values_and_runs_nothing(study, tmp_path):
+    """RECORDS_ONLY=1 over the study's runs with a third value not run: the two done values'
+    records, byte for byte the study's own, the third named, no run started, no study written."""
+    d, args = study
+    args = [a for a in args if not a.startswith(("VALUES=", "STUDY_FIGURES="))]
+    r = _make(*args, "VALUES=0.1 0.3 0.2", f"STUDY_FIGURES={tmp_path}/figures", "RECORDS_ONLY=1")
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "scene.polydispersity = 0.2: not done yet" in r.stderr
+    assert not (d / "data" / "0.2").exists() and not (tmp_path / "figures" / "study.json").exists()
+    for label in ("0.1", "0.3"):
+        mine = sorted((tmp_path / "figures" / "records" / label).iterdir())
+        theirs = sorted((d / "figures" / "records" / label).iterdir())
+        assert [p.name for p in mine] == [p.name for p in theirs] and mine
+        assert all(a.read_bytes() == b.read_bytes() for a, b in zip(mine, theirs))
+
+
 def test_records_of_another_configuration_are_refused(study, tmp_path):
     import shutil
 

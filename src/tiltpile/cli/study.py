@@ -11,7 +11,9 @@ r + D deg (rounded to the whole degree).
 Layout: DATA/<value>/ (the study's runs; DATA/<value>-fresh/ the fresh piles of ``repose+D``),
 FIGURES/study.{png,pdf,json}, FIGURES/study.md, FIGURES/records/<value>/ (each run's record and
 the repose angles, ``repose.json``, without their per-frame traces). A value whose run files are
-gone is read from its records.
+gone is read from its records. ``--records-only`` runs nothing and writes the records of the values
+whose runs and repose angles are done (``make study ... RECORDS_ONLY=1``), so that a study spread
+over sessions keeps what it has computed.
 """
 
 from __future__ import annotations
@@ -61,6 +63,10 @@ def add_parser(sub) -> None:
     p.add_argument("--runs-only", action="store_true",
                    help="only the ensembles and repose angles (make study runs the analysis "
                         "after them in its own environment)")
+    p.add_argument("--records-only", action="store_true",
+                   help="run nothing: write the records of the values whose runs and repose "
+                        "angles are all done, so they can be committed before the rest is (a "
+                        "study spread over sessions); the others are named and left")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
     p.set_defaults(func=run, interrupted="interrupted; finished runs are kept and unfinished ones "
                                          "resume next time")
@@ -259,11 +265,43 @@ def run(args) -> int:
     the observables, records, numbers, figure, JSON and report section. Exit status 1, one
     line, when a run or a repose measurement fails."""
     offset, plans, data, figures = _validate(args)
+    if args.records_only and args.runs_only:
+        raise ConfigError("--records-only and --runs-only: give one of them")
     try:
+        if args.records_only:
+            return _records_of_done_values(args, offset, plans, data, figures)
         return _run(args, offset, plans, data, figures)
     except RuntimeError as e:
         print(f"tiltpile study: error: {' '.join(str(e).split())}", file=sys.stderr)
         return 1
+
+
+def _done(d: Path, runs: int) -> bool:
+    """Every run of seeds 0 .. runs - 1 finished in ``d`` (its run file there)."""
+    return all((d / f"run_{s:04d}.h5").is_file() for s in range(runs))
+
+
+def _records_of_done_values(args, offset, plans, data, figures) -> int:
+    """--records-only: for each value whose study runs and repose angles are done, its
+    observables and records (``_records``); the others named. Nothing is simulated."""
+    from tiltpile.analysis.observables import compute_observables
+
+    records, done = figures / "records", []
+    for label, value, kv, fresh, study in plans:
+        d = data / label
+        rep = d / "repose.json" if offset is None else data / f"{label}-fresh" / "repose.json"
+        if _from_records(d, records / label):
+            print(f"tiltpile study: {args.key} = {label}: records only, nothing to write",
+                  file=sys.stderr, flush=True)
+        elif not (_done(d, args.runs) and rep.is_file()):
+            print(f"tiltpile study: {args.key} = {label}: not done yet (runs or repose angles)",
+                  file=sys.stderr, flush=True)
+        else:
+            compute_observables(d, workers=args.workers, progress=False)
+            _records(d, records / label, rep, args)
+            done.append(label)
+    print(f"wrote the records of {', '.join(done) if done else 'no value'} in {records}")
+    return 0
 
 
 def _from_records(d: Path, rec: Path) -> bool:
