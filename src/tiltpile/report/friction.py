@@ -157,7 +157,8 @@ def render(doc: dict | None) -> list[str]:
     lines = ["", "## Friction", "",
              "The paper explains the clusters' orientation by Mohr-Coulomb: failure planes at "
              "45 + 1/2 atan(mu) deg to gravity, ~58 deg at mu = 0.5. One friction cannot test "
-             "that; the friction study changes mu and nothing else "
+             "that; the friction study changes the grains' mu (grain on grain and on the "
+             "fixed bottom row; the box's side walls keep `scene.mu_wall`) and nothing else "
              f"(`{st.get('command', 'tiltpile study')}`: preset {st.get('preset')}, "
              f"{st.get('runs')} piles of {_grains(doc)} grains per value). " + history, "",
              answer(mc), ""]
