@@ -76,3 +76,24 @@ def test_the_readme_and_the_cli_doc_list_the_presets_of_the_table():
     assert [r[0] for r in cli] == list(config.PRESETS)
     assert {r[0]: r[1] for r in cli} == {p.name: str(config.load(p.name).scene.n)
                                          for p in config.PRESET_TABLE}
+
+
+def test_every_committed_figures_directory_is_not_ignored_by_git():
+    """What a preset's `make figures` writes (its JSON, PNGs, records, report) and the friction
+    study the report reads are committed: git must not ignore them (figures/*/ is ignored, so
+    each needs its exception in .gitignore; the friction study's records once were refused)."""
+    import shutil
+    import subprocess
+
+    from tiltpile.report import friction
+
+    if shutil.which("git") is None or not (ROOT / ".git").exists():
+        import pytest
+        pytest.skip("not a git checkout")
+    paths = [f"{p.figures}/fig2_avalanche_criterion.json" for p in config.PRESET_TABLE]
+    # the records of every scale but the default one (whose runs are cheap to recompute)
+    paths += [f"{p.figures}/records/run_0000.npz" for p in config.PRESET_TABLE if p.figures != "figures"]
+    paths += [f"figures/{friction.STUDY}", f"figures/{friction.STUDY.parent}/records/0.5/run_0000.npz"]
+    r = subprocess.run(["git", "check-ignore", "--no-index", *paths], cwd=ROOT,
+                       capture_output=True, text=True)
+    assert r.stdout.split() == [], f"ignored by .gitignore: {r.stdout.split()}"
