@@ -296,7 +296,8 @@ REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparati
                   $(REPORT_ROOT)/default-dem/same-piles/same_piles.json \
                   $(REPORT_ROOT)/study-friction/study.json \
                   $(REPORT_ROOT)/paper-fast/same-piles/same_piles.json \
-                  $(REPORT_ROOT)/paper-fast/same-piles/*/fig*.json)
+                  $(REPORT_ROOT)/paper-fast/same-piles/*/fig*.json \
+                  $(REPORT_ROOT)/paper-fast/definitions.json)
 $(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli/report.py src/tiltpile/__init__.py \
            src/tiltpile/outputs.py src/tiltpile/paper_values.py | $(STAMP)
 	$(PY) -m tiltpile report --figures $(FIGURES) --out $@

@@ -706,3 +706,25 @@ def test_the_history_rate_section_decides_against_what_chance_moves(tmp_path):
     assert hr.decision(dict(study, n_moved=30), 0) == "fails"
     assert hr.decision(dict(study, n_moved=24), 0) == "passes"
     assert hr.decision(dict(study, null=None), 0) == "open"
+
+
+def test_the_definitions_section_at_4000_grains_says_when_it_is_preliminary(tmp_path):
+    """figures/paper-fast/definitions.json gives the section a second time at the larger scale,
+    marked preliminary below the 16 piles its verdicts wait for (a study document of the
+    committed 1000-grain study, relabelled)."""
+    from pathlib import Path
+
+    root = tmp_path / "figures"
+    _write(root, [dict(_fig2(), preset="default", n_grains=1000)])
+    committed = Path(__file__).resolve().parents[2] / "figures" / "definitions.json"
+    doc = dict(json.loads(committed.read_text()), n_runs=5, n_grains=4000)
+    (root / "paper-fast").mkdir(parents=True)
+    study = root / "paper-fast" / "definitions.json"
+    study.write_text(json.dumps(doc))
+    assert study in report.inputs(root)
+    text = report.write_report(root, tmp_path / "R.md").read_text()
+    assert ("## What the disagreements depend on (5 cycled piles of 4000 grains, `paper-fast`; "
+            "preliminary, 5 of the 16 piles the verdicts wait for)") in text
+    study.write_text(json.dumps(dict(doc, n_runs=16)))
+    text = report.write_report(root, tmp_path / "R.md").read_text()
+    assert "## What the disagreements depend on (16 cycled piles of 4000 grains, `paper-fast`)" in text

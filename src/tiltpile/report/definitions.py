@@ -127,6 +127,25 @@ def render(doc: dict | None, claims: list[Claim], scale: str = "") -> list[str]:
     return lines
 
 
+#: the 4000-grain study waits for this many piles (issue 51: 16 or more)
+LARGE_RUNS = 16
+
+
+def render_large(fast_dir, claims: list[Claim]) -> list[str]:
+    """The section again at 4000 grains, from the paper-fast figures directory's study
+    (``tiltpile definitions figures/paper-fast/records --records figures/paper-fast/definitions
+    ...``, its gap g fixed at 1000 grains, so out of sample); marked preliminary below
+    ``LARGE_RUNS`` piles. [] without the study."""
+    doc = load(fast_dir)
+    if not doc:
+        return []
+    n = doc.get("n_runs") or 0
+    where = (f"{n} cycled piles of {doc.get('n_grains')} grains, `paper-fast`"
+             + (f"; preliminary, {n} of the {LARGE_RUNS} piles the verdicts wait for"
+                if n < LARGE_RUNS else ""))
+    return render(doc, claims, scale=where)
+
+
 def _list(items: list[str]) -> str:
     return "nothing" if not items else "; ".join(f"*{x}*" for x in items)
 
