@@ -96,8 +96,9 @@ def test_mixed_ensembles_exchange_the_runs_of_the_flipped_seeds(ens, tmp_path):
 
 def test_the_null_counts_what_chance_moves(ens, tmp_path):
     """An ensemble against itself: every exchange moves nothing, p = 1. Against a copy with every
-    z raised by 0.1, the observed count is the largest there is (each exchange moves part of the
-    shift back), so no exchange reaches it unless it exchanges no seed or all of them."""
+    z raised by 0.1, the observed count is the largest there is (an exchange moves part of the
+    shift back, or all of it to the other side), so no exchange exceeds it; the same generator
+    seed gives the same exchanges."""
     table, _, _ = sp.ensemble_against_ensemble(ens, ens, FAST)
     null = sp.null_moved(ens, ens, table, 3, stems=FAST, scratch=tmp_path)
     assert null["counts"] == [0, 0, 0] and null["observed"] == 0 and null["p_value"] == 1.0
