@@ -294,6 +294,8 @@ REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparati
                   $(REPORT_ROOT)/preparation.json $(REPORT_ROOT)/zcount.json \
                   $(REPORT_ROOT)/definitions.json \
                   $(REPORT_ROOT)/default-dem/same-piles/same_piles.json \
+                  $(REPORT_ROOT)/paper-fast-dem/same-piles/same_piles.json \
+                  $(REPORT_ROOT)/paper-fast-dem/same-piles/*/fig*.json \
                   $(REPORT_ROOT)/study-friction/study.json \
                   $(REPORT_ROOT)/paper-fast/same-piles/same_piles.json \
                   $(REPORT_ROOT)/paper-fast/same-piles/*/fig*.json \
@@ -438,17 +440,21 @@ definitions: | $(STAMP)
 	@test -n "$(wildcard $(DATA)/run_*.h5)" || { echo "make definitions: no run files in DATA=$(DATA) (the definitions need them, not records)"; exit 2; }
 	$(ANALYSIS_ENV) $(PY) -m tiltpile definitions $(DATA) --out $(FIGURES)/definitions.json $(if $(G),--g $(G))
 
-# `make engines [ENGINES_REF=data/default] [ENGINES_DEM=data/default-dem]`: the default piles in
-# both engines (preset default-dem: the soft-sphere DEM), pile against pile and every figure
-# number ensemble against ensemble (`tiltpile same-piles`), into figures/default-dem/same-piles/
-# (same_piles.json and both sides' figure documents), which the report's section "Same piles,
-# another model" reads (then `make reports`). Either side may be run files or records.
-ENGINES_REF ?= data/default
-ENGINES_DEM ?= data/default-dem
+# `make engines [ENGINES=default|paper-fast] [ENGINES_REF=dir] [ENGINES_DEM=dir]`: the piles of
+# preset ENGINES in both engines (preset ENGINES-dem: the soft-sphere DEM), pile against pile and
+# every figure number ensemble against ensemble (`tiltpile same-piles`), into
+# figures/ENGINES-dem/same-piles/ (same_piles.json and both sides' figure documents), which
+# the report's section "Same piles, another model" reads (then `make reports`); its subsection
+# "At 4000 grains" is ENGINES=paper-fast. Either side may be run files or records: by default
+# data/default and data/default-dem, for paper-fast the committed records of both.
+ENGINES ?= default
+ENGINES_REF ?= $(if $(filter default,$(ENGINES)),data/default,figures/$(ENGINES)/records)
+ENGINES_DEM ?= $(if $(filter default,$(ENGINES)),data/default-dem,figures/$(ENGINES)-dem/records)
 .PHONY: engines
 engines: | $(STAMP)
-	$(ANALYSIS_ENV) $(PY) -m tiltpile same-piles $(ENGINES_REF) $(ENGINES_DEM) --ref-label default \
-	  --label default-dem --out figures/default-dem/same-piles --quiet
+	@case "$(ENGINES)" in default|paper-fast) ;; *) echo "make engines: ENGINES=$(ENGINES): give default or paper-fast"; exit 2;; esac
+	$(ANALYSIS_ENV) $(PY) -m tiltpile same-piles $(ENGINES_REF) $(ENGINES_DEM) --ref-label $(ENGINES) \
+	  --label $(ENGINES)-dem --out figures/$(ENGINES)-dem/same-piles --quiet
 
 # `make definition-records [PRESET=paper-fast] [DATA=dir] [DEF_G=0.00216] [WORKERS=W]`: the records of
 # every finished run of DATA at the parameters of the definitions the 4000-grain study keeps

@@ -2,7 +2,9 @@
 history and ramp by the second engine (the soft-sphere DEM, preset ``default-dem``), pile against
 pile (``same_piles.json`` of ``tiltpile same-piles``, ``make engines``), and the paper's claims
 judged on both: which disagreements with the paper both engines share (then not our engine's)
-and which only one has.
+and which only one has. Its subsection "At 4000 grains" does the same for paper-fast's piles
+(preset ``paper-fast-dem`` against ``paper-fast``'s records of the same seeds, ``make engines
+ENGINES=paper-fast``), the claims judged on the figure documents the study writes of each side.
 
 The per-claim verdicts are the report's own (:func:`tiltpile.report.document.judge_all` on each
 scale's figures), handed in by :func:`tiltpile.report.document.write_report`.
@@ -14,12 +16,18 @@ import json
 import math
 from pathlib import Path
 
+from tiltpile import config as cfgmod
+
 from .judging import DISAGREES, MISSING, Claim, num as _num, show as _f
 from .rigidity import BEYOND
 
 #: (the reference scale, the scale of the other engine): their figures directories are the
 #: report's (``scales.scale_dirs``)
 PAIR = ("default", "default-dem")
+#: the same at 4000 grains: paper-fast's piles (their history at 10x the ramp's rate) in both
+PAPER_PAIR = ("paper-fast", "paper-fast-dem")
+#: the piles the 4000-grain pair is planned for (the DEM preset's ensemble)
+PAPER_TARGET = cfgmod.preset_info(PAPER_PAIR[1]).runs
 #: where ``make engines`` writes the pile-against-pile study, below the other engine's figures
 STUDY = Path("same-piles") / "same_piles.json"
 # the per-seed numbers of the study (figures.same_piles.PER_SEED), as the table names them
@@ -39,6 +47,13 @@ def load(figures_dir) -> dict | None:
     """The pile-against-pile study of the other engine's figures directory (None without one)."""
     p = Path(figures_dir) / STUDY
     return json.loads(p.read_text()) if p.is_file() else None
+
+
+def side_dirs(figures_dir, pair=PAPER_PAIR) -> dict[str, Path]:
+    """{label: the directory of that side's figure documents} of the study below the other
+    engine's figures directory ``figures_dir`` (``tiltpile same-piles`` writes them there)."""
+    d = (Path(figures_dir) / STUDY).parent
+    return {label: d / label for label in pair}
 
 
 def _mean(values) -> float:
@@ -65,11 +80,11 @@ def pile_table(study: dict) -> list[str]:
     return lines
 
 
-def shared(judged: dict[str, list], claims: list[Claim]) -> dict[str, list[str]]:
+def shared(judged: dict[str, list], claims: list[Claim], pair=PAIR) -> dict[str, list[str]]:
     """{kind: [claim text (ours; theirs)]} of the claims of the paper that either engine's
     figures disagree with: "both" (not our engine's), "cd" (ours only), "dem" (the other engine
-    only); ``judged``: {scale: judge_all's rows} of the two scales of ``PAIR``."""
-    ref, other = (judged[s] for s in PAIR)
+    only); ``judged``: {scale: judge_all's rows} of the two scales of ``pair``."""
+    ref, other = (judged[s] for s in pair)
     out = {"both": [], "cd": [], "dem": []}
     for c, a, b in zip(claims, ref, other):
         va, vb = a[2], b[2]
@@ -80,9 +95,46 @@ def shared(judged: dict[str, list], claims: list[Claim]) -> dict[str, list[str]]
     return out
 
 
-def render(study: dict | None, judged: dict[str, list], claims: list[Claim]) -> list[str]:
+def _kinds(k: dict[str, list[str]]) -> list[str]:
+    return ["- **In both engines** (not our engine's doing): "
+            + ("; ".join(k["both"]) if k["both"] else "none") + ".",
+            "- **In Contact Dynamics only** (the DEM agrees): "
+            + ("; ".join(k["cd"]) if k["cd"] else "none") + ".",
+            "- **In the DEM only**: " + ("; ".join(k["dem"]) if k["dem"] else "none") + "."]
+
+
+def render_paper(study: dict | None, judged: dict[str, list], claims: list[Claim]) -> list[str]:
+    """Markdown lines of the subsection "At 4000 grains": paper-fast's piles in both engines,
+    pile against pile, and the claims on each side's figure documents (``judged``: {scale:
+    judge_all's rows} of ``PAPER_PAIR``, from :func:`side_dirs`). Without the study, one line
+    saying it is not yet computed and how to make it."""
+    ref, other = PAPER_PAIR
+    lines = ["", "### At 4000 grains", ""]
+    if study is None:
+        return lines + [f"The paper-scale pair (preset `{other}`: {PAPER_TARGET} of `{ref}`'s "
+                        "piles in the DEM, several hours each) is not yet computed "
+                        "(docs/dem.md; then `make engines ENGINES=paper-fast`)."]
+    n = len(study["seeds"])
+    lines += [f"`{ref}`'s piles (4000 grains, cycled twice to +-16 deg at 10x the ramp's rate) "
+              f"carried through the same history and ramp by the DEM (preset `{other}`), against "
+              f"`{ref}`'s records of the same seeds: {n} of {PAPER_TARGET} piles"
+              + ("." if n >= PAPER_TARGET else " so far (**preliminary**)."), ""]
+    lines += pile_table(study)
+    lines += ["", f"Every figure number ensemble against ensemble: {study['n_moved']} of "
+              f"{study['n_with_error']} numbers with a jackknife error differ by more than "
+              f"{study['sigma_limit']:g} combined standard errors."]
+    if all(s in judged for s in PAPER_PAIR):
+        lines += ["", f"The paper's claims on each engine's {n} piles (few piles: a verdict whose "
+                  "number needs many runs may turn on one pile):", ""]
+        lines += _kinds(shared(judged, claims, PAPER_PAIR))
+    return lines
+
+
+def render(study: dict | None, judged: dict[str, list], claims: list[Claim],
+           paper: list[str] | None = None) -> list[str]:
     """Markdown lines of the section; empty unless both scales of ``PAIR`` have figures. Without
-    the study, the claims only (and how to make it)."""
+    the study, the claims only (and how to make it). ``paper``: the lines of
+    :func:`render_paper`, appended."""
     if any(s not in judged for s in PAIR):
         return []
     ref, other = PAIR
@@ -103,11 +155,6 @@ def render(study: dict | None, judged: dict[str, list], claims: list[Claim]) -> 
                   f"{study['n_with_error']} numbers with a jackknife error differ by more than "
                   f"{study['sigma_limit']:g} combined standard errors "
                   f"({study['n_numbers']} numbers in all)."]
-    k = shared(judged, claims)
     lines += ["", "Where the paper and our piles disagree:", ""]
-    lines.append("- **In both engines** (not our engine's doing): "
-                 + ("; ".join(k["both"]) if k["both"] else "none") + ".")
-    lines.append("- **In Contact Dynamics only** (the DEM agrees): "
-                 + ("; ".join(k["cd"]) if k["cd"] else "none") + ".")
-    lines.append("- **In the DEM only**: " + ("; ".join(k["dem"]) if k["dem"] else "none") + ".")
-    return lines
+    lines += _kinds(shared(judged, claims))
+    return lines + (paper or [])
