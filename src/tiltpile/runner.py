@@ -221,12 +221,15 @@ class _Bar:
     def __init__(self, theta_max_deg, seed, mode, position):
         from tqdm.auto import tqdm
 
+        self.interval = 1.0 if mode != "log" else 30.0
         self.t = tqdm(total=round(theta_max_deg, 3), unit="deg", position=position,
                       desc=f"seed {seed} deposit", disable=not mode, leave=position == 0,
-                      mininterval=1.0 if mode != "log" else 30.0,
+                      mininterval=self.interval,
                       bar_format="{desc}: {percentage:3.0f}%|{bar}| {n:.2f}/{total:.0f} deg "
                                  "[{elapsed}<{remaining}{postfix}]")
         self.seed = seed
+        self.clock = time.monotonic
+        self.shown = self.clock()
 
     def update(self, ev) -> None:
         if ev.phase == "deposit":
@@ -235,8 +238,14 @@ class _Bar:
             self.t.set_description(f"seed {self.seed} pretilt {ev.theta_deg:+.1f} deg", refresh=False)
         else:
             self.t.set_description(f"seed {self.seed} tilt", refresh=False)
-            self.t.update(ev.theta_deg - self.t.n)
         self.t.set_postfix_str(f"{ev.mean_iterations:.0f} sweeps/step", refresh=False)
+        if ev.phase == "tilt":
+            self.t.update(ev.theta_deg - self.t.n)
+        elif not self.t.disable and self.clock() - self.shown >= self.interval:
+            # the deposit and the history do not move the tilt count, so tqdm would not redraw:
+            # redraw their description (step, history angle) at the bar's own interval
+            self.t.refresh()
+            self.shown = self.clock()
 
     def close(self) -> None:
         self.t.close()

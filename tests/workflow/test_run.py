@@ -277,3 +277,26 @@ def test_frames_digest_of_a_finished_file_is_its_writers(tmp_path, monkeypatch):
         assert r.n_frames > 1 and r.frames_digest() == seen[0]
         assert r.attrs_digest is not None and len(r.attrs_digest) == 64
         assert r.end_theta_deg == pytest.approx(float(r.theta_deg[-1]))
+
+
+def test_the_progress_bar_moves_through_the_deposit_and_the_history(capsys):
+    """The deposit and the history leave the tilt count at 0, which tqdm alone would never
+    redraw: the bar redraws their step and angle once per interval, and not more often."""
+    from tiltpile.runner import _Bar
+    from tiltpile.sim.protocol import Progress
+
+    clock = [0.0]
+    bar = _Bar(30.0, 3, True, 0)
+    bar.clock, bar.shown = (lambda: clock[0]), 0.0
+    bar.update(Progress("deposit", 500, 0.0, 12.0))
+    clock[0] = 2.0
+    bar.update(Progress("deposit", 900, 0.0, 12.0))
+    for theta in (4.0, 8.0):
+        clock[0] += 2.0
+        bar.update(Progress("pretilt", 1000, theta, 30.0))
+    clock[0] += 0.5                                     # within the interval: not redrawn
+    bar.update(Progress("pretilt", 1100, 12.0, 30.0))
+    err = capsys.readouterr().err
+    assert "deposit step 900" in err and "pretilt +8.0 deg" in err
+    assert "deposit step 500" not in err and "pretilt +12.0 deg" not in err
+    bar.close()
