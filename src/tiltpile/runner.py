@@ -233,12 +233,15 @@ class _Bar:
 
     def update(self, ev) -> None:
         if ev.phase == "deposit":
-            self.t.set_description(f"seed {self.seed} deposit step {ev.step}", refresh=False)
+            self.t.set_description_str(f"seed {self.seed} deposit step {ev.step}", refresh=False)
         elif ev.phase == "pretilt":
-            self.t.set_description(f"seed {self.seed} pretilt {ev.theta_deg:+.1f} deg", refresh=False)
+            self.t.set_description_str(f"seed {self.seed} pretilt {ev.theta_deg:+.1f} deg",
+                                       refresh=False)
         else:
-            self.t.set_description(f"seed {self.seed} tilt", refresh=False)
-        self.t.set_postfix_str(f"{ev.mean_iterations:.0f} sweeps/step", refresh=False)
+            self.t.set_description_str(f"seed {self.seed} tilt", refresh=False)
+        # the DEM has no sweeps (its events carry 0): its step count instead
+        self.t.set_postfix_str(f"{ev.mean_iterations:.0f} sweeps/step" if ev.mean_iterations > 0
+                               else f"step {ev.step}", refresh=False)
         if ev.phase == "tilt":
             self.t.update(ev.theta_deg - self.t.n)
         elif not self.t.disable and self.clock() - self.shown >= self.interval:

@@ -297,6 +297,7 @@ def test_the_progress_bar_moves_through_the_deposit_and_the_history(capsys):
     clock[0] += 0.5                                     # within the interval: not redrawn
     bar.update(Progress("pretilt", 1100, 12.0, 30.0))
     err = capsys.readouterr().err
-    assert "deposit step 900" in err and "pretilt +8.0 deg" in err
+    assert "deposit step 900" in err and "pretilt +8.0 deg: " in err and "deg: :" not in err
+    assert "30 sweeps/step" in err
     assert "deposit step 500" not in err and "pretilt +12.0 deg" not in err
     bar.close()
