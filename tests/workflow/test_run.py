@@ -300,4 +300,7 @@ def test_the_progress_bar_moves_through_the_deposit_and_the_history(capsys):
     assert "deposit step 900" in err and "pretilt +8.0 deg: " in err and "deg: :" not in err
     assert "30 sweeps/step" in err
     assert "deposit step 500" not in err and "pretilt +12.0 deg" not in err
+    clock[0] += 2.0                                     # the DEM's events: no sweeps, its step
+    bar.update(Progress("pretilt", 4242, 16.0, 0.0))
+    assert "step 4242" in capsys.readouterr().err
     bar.close()
