@@ -205,7 +205,9 @@ class HealthConfig:
                                           "solver.tol (settling and tilt) hit solver.max_iter")
     cap_hit_stop_fraction: float = _f(0.98, lo=0.0, hi=1.0,
                                       doc="stop when more than this fraction has, judged from "
-                                          "CAP_HIT_MIN_STEPS (500) steps on; 1 never stops")
+                                          "CAP_HIT_MIN_STEPS (500) steps on (the same steps: "
+                                          "not the history's, which flow past the repose "
+                                          "angle); 1 never stops")
 
 
 @dataclass(frozen=True)

@@ -507,3 +507,27 @@ def test_cluster_size_windows_report_refused_and_poor_fits():
     assert w.loc[1, "fit_error"] == "" and "max_delta_err" in w.loc[1, "fit_warning"]
     assert w.loc[1, "delta_err"] > 0.5
     assert "need at least 50" in w.loc[2, "fit_error"] and np.isnan(w.loc[2, "delta"])
+
+
+def test_the_histories_flow_does_not_count_against_the_cap():
+    """The cap-hit stop counts the settling and tilt steps, not the history's: its legs go past
+    the repose angle by design, where a pile flows and caps every step (a mu = 0.8 pile cycled to
+    +-16 deg capped 98% of its first 1400 steps, then 24% of its tilt's). The same chunk, every
+    step capped, stops a run in the tilt once CAP_HIT_MIN_STEPS are judged."""
+    from types import SimpleNamespace
+
+    h = config.load("smoke").health
+    k = protocol.CAP_HIT_MIN_STEPS
+    rec = SimpleNamespace(overlap=np.zeros(k), energy_gain=np.zeros(k),
+                          iterations=np.full(k, 1000))
+
+    def judged(phase):
+        s = SimpleNamespace(scalars=protocol.RunState(phase=phase, step=2 * k),
+                            params={"max_iter": 1000})
+        protocol._check_health(s, rec, h, 100, phase)
+        return s.scalars
+
+    st = judged("pretilt")
+    assert (st.tol_steps, st.tol_cap_hits) == (0, 0)
+    with pytest.raises(SimulationError, match=f"{k} of the {k} steps"):
+        judged("tilt")
