@@ -680,6 +680,18 @@ def test_the_friction_section_answers_mohr_coulomb_and_sets_the_literature_besid
     assert "| avalanche angle theta_a | ~21 deg | 21.7 deg (mu = 0.5) |" in sec
     assert "11.0 (mu = 0.2), 14.7 (mu = 0.5), 16.0 (mu = 1) deg |" in sec     # the trend row
     assert "the repose angle changes by +3.7 deg from mu = 0.2 to 0.5 and by +1.3 deg" in sec
+    doc = _friction_study()                 # only the mu = 0.2 piles slide within the ramp
+    for lab, v in doc["numbers"]["per_value"].items():
+        if lab != "0.2":
+            v["numbers"]["theta_avalanche"] = {"estimate": None, "low": None, "high": None,
+                                               "n_runs_with": 0}
+        else:
+            v["numbers"]["theta_avalanche"]["n_runs_with"] = 1
+    study.write_text(json.dumps(doc))
+    sec = report.write_report(root, tmp_path / "R.md").read_text().split("\n## Friction")[1]
+    assert "| ~21 deg | none: no pile slid within the ramp (mu = 0.5) |" in sec
+    assert "the avalanche angle is out of the ramp's reach: 1 of 9 piles slid before its end" in sec
+    assert "n/a deg" not in sec
     study.write_text(json.dumps(_friction_study(slope=(0.9, 0.6, 1.3), verdict="consistent")))
     text = report.write_report(root, tmp_path / "R.md").read_text()
     assert "**The paper's Mohr-Coulomb reading survives a change of friction in our piles:**" in text

@@ -92,20 +92,25 @@ def _ours(doc: dict, src: Source) -> str:
         lab = next((lab for mu, lab in by_mu if math.isclose(mu, src.mu)), None)
         if lab is None:
             return f"(mu = {src.mu:g} not in the study)"
-        return f"{show(_estimate(doc, lab, src.ours), '.1f')} deg (mu = {src.mu:g})"
+        v = _estimate(doc, lab, src.ours)
+        if not math.isfinite(v):
+            return f"none: no pile slid within the ramp (mu = {src.mu:g})"
+        return f"{show(v, '.1f')} deg (mu = {src.mu:g})"
     return ", ".join(f"{show(_estimate(doc, lab, src.ours), '.1f')} (mu = {mu:g})"
                      for mu, lab in by_mu) + " deg"
 
 
 def saturation(doc: dict, key: str) -> dict | None:
     """How an angle grows with friction: its rise from the smallest mu to 0.5 and from 0.5 to the
-    largest (deg), when the study has all three; None otherwise."""
+    largest (deg), when the study has all three and each has the angle; None otherwise."""
     by_mu = _labels_by_mu(doc)
     mid = next((lab for mu, lab in by_mu if math.isclose(mu, 0.5)), None)
     if mid is None or len(by_mu) < 3 or not by_mu[0][0] < 0.5 < by_mu[-1][0]:
         return None
     lo, hi = by_mu[0], by_mu[-1]
     a, b, c = (_estimate(doc, lab, key) for lab in (lo[1], mid, hi[1]))
+    if not all(math.isfinite(x) for x in (a, b, c)):
+        return None
     return {"mu_low": lo[0], "mu_high": hi[0], "rise_low": b - a, "rise_high": c - b}
 
 
@@ -174,11 +179,24 @@ def render(doc: dict | None) -> list[str]:
     said = [f"the {words[k]} changes by {show(s['rise_low'], '+.1f')} deg from mu = "
             f"{s['mu_low']:g} to 0.5 and by {show(s['rise_high'], '+.1f')} deg from 0.5 to "
             f"{s['mu_high']:g}" for k, s in sat if s]
+    slid = _slid(doc)
+    if slid and not dict(sat)["theta_avalanche"]:
+        said.append(f"the avalanche angle is out of the ramp's reach: {slid[0]} of {slid[1]} "
+                    "piles slid before its end")
     if said:
         lines += ["", "In our piles " + "; ".join(said) + f". Our angles are at {_grains(doc)} "
                   "grains, Deboeuf's at 4000; no published measurement of the failing "
                   "clusters' orientation against friction was found."]
     return lines
+
+
+def _slid(doc: dict) -> tuple[int, int] | None:
+    """(piles that slid within the ramp, piles) over every value of the study."""
+    pv = doc["numbers"]["per_value"].values()
+    ava = [v["numbers"].get("theta_avalanche") for v in pv]
+    if any(a is None or "n_runs_with" not in a for a in ava):
+        return None
+    return sum(int(a["n_runs_with"]) for a in ava), sum(int(v["n_runs"]) for v in pv)
 
 
 def _grains(doc: dict) -> str:
