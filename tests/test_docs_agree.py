@@ -197,3 +197,31 @@ def test_what_we_found_quotes_the_engines_study():
     kinds = engines.shared(judged, CLAIMS)
     assert len(kinds["both"]) == 5 and not kinds["cd"] and len(kinds["dem"]) == 2
     assert "shares all five disagreements" in FOUND and "adds two of its own" in FOUND
+
+
+def test_what_we_found_quotes_the_committed_friction_study():
+    """The README's friction bullet gives the committed study's numbers: the Mohr-Coulomb slope
+    and its interval, the orientations' and predictions' ranges, the repose angles, <z> and delta
+    at the two ends, the largest cluster near the onset at the two ends."""
+    import pytest
+
+    path = ROOT / "figures" / "study-friction" / "study.json"
+    if not path.exists():
+        pytest.skip("the friction study is not committed")
+    n = json.loads(path.read_text())["numbers"]
+    mc, pv, labels = n["mohr_coulomb"], n["per_value"], n["labels"]
+
+    def est(lab, key):
+        return pv[lab]["numbers"][key]["estimate"]
+    f = mc["fit"]
+    lo, hi = labels[0], labels[-1]
+    rest = [est(lab, "repose_surface") for lab in labels[1:]]
+    for quoted in (f"slope of {f['slope']:.2f} [{f['slope_low']:.2f}, {f['slope_high']:.2f}]",
+                   f"lean {min(mc['measured_deg']):.0f}-{max(mc['measured_deg']):.0f} deg",
+                   f"({min(mc['predicted_deg']):.1f}-{max(mc['predicted_deg']):.1f} deg)",
+                   f"{est(lo, 'repose_surface'):.1f} deg at mu = {float(lo):g}, "
+                   f"{min(rest):.1f}-{max(rest):.1f} from {float(labels[1]):g} on",
+                   f"<z> falls from {est(lo, 'z_quiet'):.2f} to {est(hi, 'z_quiet'):.2f}",
+                   f"delta rises from {est(lo, 'delta'):.1f} to {est(hi, 'delta'):.1f}",
+                   f"({est(lo, 's_max_near'):.0f} to {est(hi, 's_max_near'):.0f} grains)"):
+        assert quoted in FOUND, quoted
