@@ -50,8 +50,8 @@ def load(figures_dir) -> dict | None:
 
 
 def side_dirs(figures_dir, pair=PAPER_PAIR) -> dict[str, Path]:
-    """{label: the directory of that side's figure documents} of the study below the other
-    engine's figures directory ``figures_dir`` (``tiltpile same-piles`` writes them there)."""
+    """{label: the directory of that side's figure documents} of the ``same-piles`` study below
+    ``figures_dir`` (``tiltpile same-piles`` writes them there); also history_rate's."""
     d = (Path(figures_dir) / STUDY).parent
     return {label: d / label for label in pair}
 

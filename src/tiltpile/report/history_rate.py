@@ -23,14 +23,14 @@ from pathlib import Path
 
 from tiltpile import config as cfgmod
 
-from .engines import pile_table
+from .engines import STUDY as _engines_study, pile_table, side_dirs as _side_dirs
 from .judging import MISSING, Claim
 from .rigidity import BEYOND
 
 #: (the reference scale, the scale with the faster history)
 PAIR = ("paper", "paper-fast")
 #: the study, below the faster scale's figures directory; each side's figure documents beside it
-STUDY = Path("same-piles") / "same_piles.json"
+STUDY = _engines_study
 #: the seeds the decision waits for (the preset's ensemble)
 TARGET = cfgmod.preset_info(PAIR[1]).runs
 
@@ -43,8 +43,7 @@ def load(figures_dir) -> dict | None:
 
 def side_dirs(figures_dir) -> dict[str, Path]:
     """{label: the directory of that side's figure documents} of the study."""
-    d = (Path(figures_dir) / STUDY).parent
-    return {label: d / label for label in PAIR}
+    return _side_dirs(figures_dir, PAIR)
 
 
 def differing(judged: dict[str, list], claims: list[Claim]) -> list[str]:
