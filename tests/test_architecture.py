@@ -196,3 +196,41 @@ def test_the_path_check_bites():
     files = _file_lists("x\n**Files it touches:**\n\n- `Makefile`: `RUNS_<n>`, `FIG_COMMON`\n"
                         "- `src/tiltpile/config.py` (or `other.py`): `PRESETS`\n\n**The records:** y")
     assert files == [("Makefile", ["FIG_COMMON"]), ("src/tiltpile/config.py", ["PRESETS"])]
+
+
+def _slug(heading: str) -> str:
+    """GitHub's anchor of a markdown heading: lower case, punctuation but - and _ dropped,
+    spaces to hyphens."""
+    return re.sub(r"[^\w\- ]", "", heading.strip().lower()).replace(" ", "-")
+
+
+def broken_links(md: Path) -> list[str]:
+    """The relative links of markdown file ``md`` whose file, or whose #anchor in a markdown
+    file, does not exist."""
+    text = md.read_text()
+    broken = []
+    for target in re.findall(r"\]\(([^)\s]+)\)", text):
+        if re.match(r"[a-z]+:", target):                       # http:, mailto: ...
+            continue
+        path, _, anchor = target.partition("#")
+        dest = (md.parent / path).resolve() if path else md
+        if not dest.exists():
+            broken.append(target)
+        elif anchor and dest.suffix == ".md":
+            heads = re.findall(r"^#+ (.+)$", dest.read_text(), flags=re.M)
+            if anchor not in {_slug(h) for h in heads}:
+                broken.append(target)
+    return broken
+
+
+def test_the_readme_is_a_users_guide_of_at_most_250_lines_whose_links_resolve():
+    readme = ROOT / "README.md"
+    assert len(readme.read_text().splitlines()) <= 250
+    assert broken_links(readme) == []
+
+
+def test_the_link_check_bites(tmp_path):
+    (tmp_path / "a.md").write_text("# Install without make\n")
+    (tmp_path / "b.md").write_text("[x](a.md#install-without-make) [y](a.md#install) "
+                                   "[z](c.md) [w](https://example.org/c.md)\n")
+    assert broken_links(tmp_path / "b.md") == ["a.md#install", "c.md"]
