@@ -711,7 +711,9 @@ def test_the_history_rate_section_decides_against_what_chance_moves(tmp_path):
     assert "## The history at 10x" not in report.write_report(root, tmp_path / "R.md").read_text()
     fast = root / "paper-fast" / "same-piles"
     study = dict(_same_piles_study(), ref="paper", label="paper-fast", n_moved=20,
-                 n_with_error=149, moved=[{"figure": "fig3_clusters_failure", "key": "n_peaks"}],
+                 n_with_error=149, moved=[{"figure": "fig3_clusters_failure", "key": "n_peaks"},
+                                          {"figure": "fig5_cluster_sizes", "key": "delta_pooled"}],
+                 numbers=[{"figure": "fig3_clusters_failure", "key": "n_peaks", "sigma": -2.345}],
                  null={"flips": 40, "seed": 0, "counts": [], "median": 14.0, "p95": 24.0,
                        "observed": 20, "p_value": 0.2})
     fast.mkdir(parents=True)
@@ -735,7 +737,8 @@ def test_the_history_rate_section_decides_against_what_chance_moves(tmp_path):
     assert ("20 of 149 figure numbers with a jackknife error move by more than 2 combined standard "
             "errors; chance alone moves a median of 14 (95th percentile 24) in 40 random "
             "exchanges of each seed's two runs (p = 0.20 for 20 or more)") in sec
-    assert "Moved: fig3.n_peaks." in sec
+    assert ("Moved (paper-fast minus paper, in combined standard errors): fig3.n_peaks (-2.3), "
+            "fig5.delta_pooled.") in sec
     assert "the same verdict for every claim." in sec
     assert "**Decision: not yet** (3 of 16 seeds). So far paper-fast would pass" in sec
     assert "paper 95.9 M sweeps per run, 2.09 h of wall time per run (44 runs timed whole); " \

@@ -104,9 +104,14 @@ def render(study: dict | None, judged: dict[str, list], claims: list[Claim],
     else:
         lines += ["", f"Every figure number ensemble against ensemble: {moved}; what chance "
                   "moves is not measured (`tiltpile same-piles --null K`)."]
-    names = ", ".join(f"{m['figure'].split('_')[0]}.{m['key']}" for m in study.get("moved", []))
+    sig = {(r["figure"], r["key"]): r.get("sigma") for r in study.get("numbers", [])}
+
+    def _moved(m):
+        name, s = f"{m['figure'].split('_')[0]}.{m['key']}", sig.get((m["figure"], m["key"]))
+        return f"{name} ({s:+.1f})" if s is not None and math.isfinite(s) else name
+    names = ", ".join(_moved(m) for m in study.get("moved", []))
     if names:
-        lines += ["", f"Moved: {names}."]
+        lines += ["", f"Moved (paper-fast minus paper, in combined standard errors): {names}."]
     if all(s in judged for s in PAIR):
         diff = differing(judged, claims)
         lines += ["", "The paper's claims on both sides' figures: "
