@@ -65,7 +65,7 @@ PRESET_TABLE = (
     Preset("paper", 50, "figures/paper", "claims"),
     Preset("paper-fresh", 50, "figures/paper-fresh", "claims"),
     Preset("paper-fast", 16, "figures/paper-fast", "fig2"),
-    Preset("paper-fast-dem", 3, "figures/paper-fast-dem", ""),
+    Preset("paper-fast-dem", 2, "figures/paper-fast-dem", ""),
 )
 PRESETS = tuple(p.name for p in PRESET_TABLE)
 

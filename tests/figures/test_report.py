@@ -593,11 +593,14 @@ def test_the_engines_section_says_which_disagreements_both_engines_share(tmp_pat
     assert study in report.inputs(root)
 
 
-def test_the_engines_section_at_4000_grains_judges_each_sides_figures_of_the_pair(tmp_path):
+def test_the_engines_section_at_4000_grains_judges_each_sides_figures_of_the_pair(tmp_path,
+                                                                                 monkeypatch):
     """paper-fast's piles in both engines: one line while the pair is not computed, then the
-    pile-against-pile table, marked preliminary below the DEM preset's piles, and the claims on
-    the figure documents the study wrote of each side, sorted like the default pair's."""
+    pile-against-pile table, marked preliminary below the DEM preset's piles (3 here), saying
+    that two piles give no figure number an error, and the claims on the figure documents the
+    study wrote of each side, sorted like the default pair's."""
     from tiltpile.report import engines
+    monkeypatch.setattr(engines, "PAPER_TARGET", 3)
     root = tmp_path / "figures"
     _write(root, [dict(_fig2(), preset="default", n_grains=1000)])
     _write(root / "default-dem", [dict(_fig2(), preset="default-dem", n_grains=1000)])
@@ -607,12 +610,15 @@ def test_the_engines_section_at_4000_grains_judges_each_sides_figures_of_the_pai
         return text.split("### At 4000 grains")[1].split("\n## ")[0]
     assert "is not yet computed" in sub() and "make engines ENGINES=paper-fast" in sub()
     big = root / "paper-fast-dem" / "same-piles"
-    study = dict(_same_piles_study((0, 1)), ref="paper-fast", label="paper-fast-dem")
+    study = dict(_same_piles_study((0, 1)), ref="paper-fast", label="paper-fast-dem",
+                 n_with_error=0, n_moved=0)
     big.mkdir(parents=True)
     (big / "same_piles.json").write_text(json.dumps(study))
     sec = sub()
-    assert f"2 of {engines.PAPER_TARGET} piles so far (**preliminary**)" in sec
+    assert "2 of 3 piles so far (**preliminary**)" in sec
     assert "| first 2% onset (deg) | 10.50 | 11.50 | +1.00 [+1.00, +1.00] (2) |" in sec
+    assert "On 2 piles no figure number has a jackknife error" in sec
+    assert "Every figure number ensemble against ensemble" not in sec
     assert "In both engines" not in sec          # no sides' figures yet: no claims judged
     _write(big / "paper-fast", [dict(_fig2(theta_m_min=7.0), preset="paper-fast", n_grains=4000)])
     _write(big / "paper-fast-dem", [dict(_fig2(theta_m_min=16.0, theta_m_max=17.0),
@@ -624,9 +630,11 @@ def test_the_engines_section_at_4000_grains_judges_each_sides_figures_of_the_pai
     assert by["theta_m"] in cd_only and by["z_mean"] in both
     assert big / "same_piles.json" in report.inputs(root)
     assert big / "paper-fast-dem" / "fig2_avalanche_criterion.json" in report.inputs(root)
-    study["seeds"] = list(range(engines.PAPER_TARGET))
+    study.update(seeds=[0, 1, 2], n_with_error=30, n_moved=4)
     (big / "same_piles.json").write_text(json.dumps(study))
-    assert "**preliminary**" not in sub()
+    sec = sub()
+    assert "**preliminary**" not in sec and "no figure number has a jackknife error" not in sec
+    assert "4 of 30 numbers with a jackknife error differ by more than 2" in sec
 
 
 def _friction_study(mus=(0.2, 0.5, 1.0), orientation=(50.0, 51.0, 52.0), repose=(11.0, 14.7, 16.0),

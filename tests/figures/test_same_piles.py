@@ -73,6 +73,31 @@ def test_a_known_shift_is_measured(ens):
     assert t.loc["theta_m_mean", "shift"] == 0.0 and t.loc["theta_m_mean", "sigma"] == 0.0
 
 
+def test_two_piles_are_compared_without_an_error(ens, tmp_path):
+    """Two common seeds (two piles of an expensive setting): the shift is measured, no number has
+    an error or moves, the pile-against-pile table has its two differences, chance's count is
+    refused; one seed is refused."""
+    two = sp.subset(ens, ens.seeds[:2])
+    f = two.frames.copy()
+    f["z"] = f["z"] + 0.1
+    shifted = replace(two, frames=f)
+    table, na, _ = sp.ensemble_against_ensemble(two, shifted, ("fig2_avalanche_criterion",))
+    t = table.set_index("key")
+    assert t.loc["z_quiet_mean", "shift"] == pytest.approx(0.1, abs=1e-12)
+    assert table["se"].isna().all() and table["se_ref"].isna().all() and not table["moved"].any()
+    assert table.loc[table["shift"] != 0.0, "sigma"].isna().all()
+    assert na["fig2_avalanche_criterion"]["n_runs"] == 2
+    pp = sp.pile_against_pile(two, shifted, na["fig2_avalanche_criterion"]["numbers"],
+                              na["fig2_avalanche_criterion"]["numbers"])
+    assert pp["difference"]["z_quiet"]["n"] == 2
+    assert pp["difference"]["z_quiet"]["mean"] == pytest.approx(0.1, abs=1e-12)
+    with pytest.raises(ValueError, match="chance moves needs 3"):
+        sp.null_moved(two, shifted, table, 2, stems=("fig2_avalanche_criterion",), scratch=tmp_path)
+    one = sp.subset(ens, ens.seeds[:1])
+    with pytest.raises(ValueError, match="share 1 seeds: the comparison needs 2"):
+        sp.ensemble_against_ensemble(one, one, ("fig2_avalanche_criterion",))
+
+
 def test_mixed_ensembles_exchange_the_runs_of_the_flipped_seeds(ens, tmp_path):
     """No flip gives the two ensembles back; a flip exchanges that seed's runs (and the run file
     its pictures read) and nothing else."""
@@ -155,6 +180,13 @@ def test_command_refuses_bad_input(smoke_ensemble, tmp_path, capsys):
     assert main(["same-piles", str(tmp_path / "nope"), str(smoke_ensemble), "--out", str(out)]) == 2
     assert "no such ensemble directory" in capsys.readouterr().err
     assert main(["same-piles", str(smoke_ensemble), str(tmp_path), "--out", str(out),
-                 "--seeds", "2"]) == 2
-    assert "--seeds must be at least 3" in capsys.readouterr().err
+                 "--seeds", "1"]) == 2
+    assert "--seeds must be at least 2, got 1" in capsys.readouterr().err
+    two = tmp_path / "two"
+    two.mkdir()
+    for run in sorted(smoke_ensemble.glob("run_*.h5"))[:2]:
+        (two / run.name).symlink_to(run.resolve())
+    assert main(["same-piles", str(smoke_ensemble), str(two), "--out", str(out), "--null", "3",
+                 "--label", "two", "--quiet"]) == 2
+    assert "--null 3: on 2 seeds no figure number has an error" in capsys.readouterr().err
     assert not out.exists()

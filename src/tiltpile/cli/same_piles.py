@@ -23,7 +23,8 @@ def add_parser(sub) -> None:
                                                      "preset, else its directory name)")
     p.add_argument("--label", default=None, help="name of DIR in the output (same default)")
     p.add_argument("--seeds", type=int, default=None, metavar="N",
-                   help="the first N common seeds only (default: every common seed)")
+                   help="the first N common seeds only (default: every common seed; at "
+                        "least 2, and 3 for the figure numbers' errors and --null)")
     p.add_argument("--null", type=int, default=0, metavar="K",
                    help="also count the figure numbers that move by chance: K random exchanges "
                         "of the two runs of each seed, each scored like the real pair (two "
@@ -70,8 +71,8 @@ def run(args) -> int:
 
     if args.null < 0:
         raise ConfigError(f"--null must be 0 or more, got {args.null}")
-    if args.seeds is not None and args.seeds < 3:
-        raise ConfigError(f"--seeds must be at least 3 (the jackknife needs 3 runs), got {args.seeds}")
+    if args.seeds is not None and args.seeds < sp.MIN_SEEDS:
+        raise ConfigError(f"--seeds must be at least {sp.MIN_SEEDS}, got {args.seeds}")
     if args.ref.resolve() == args.dir.resolve():
         raise ConfigError(f"{args.ref}: REF and DIR are the same directory")
     ref, ens = _load(args.ref), _load(args.dir)
@@ -83,9 +84,12 @@ def run(args) -> int:
         if len(seeds) < args.seeds:
             raise ConfigError(f"--seeds {args.seeds}: the ensembles share only {len(seeds)} seeds")
         seeds = seeds[:args.seeds]
-    if len(seeds) < 3:
+    if len(seeds) < sp.MIN_SEEDS:
         raise ConfigError(f"{args.ref} and {args.dir} share {len(seeds)} seeds: the comparison "
-                          "needs 3 or more")
+                          f"needs {sp.MIN_SEEDS} or more")
+    if args.null and len(seeds) < sp.JACKKNIFE_SEEDS:
+        raise ConfigError(f"--null {args.null}: on {len(seeds)} seeds no figure number has an "
+                          f"error to move by; chance's count needs {sp.JACKKNIFE_SEEDS} or more")
     check_output(args.out / f"{sp.NAME}.json", "--out")
     ref, ens = sp.subset(ref, seeds), sp.subset(ens, seeds)
     say = None if args.quiet else (lambda line: print(f"tiltpile same-piles: {line}", file=sys.stderr,

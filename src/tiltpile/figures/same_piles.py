@@ -19,7 +19,9 @@ This study says whether the second setting may stand in for the first (``tiltpil
   x)^2)); the shift in units of the combined error sqrt(se_ref^2 + se^2), as
   ``tiltpile.bench.guard`` measures settings, and the paired jackknife of the shift (the same
   seed left out of both) beside it. A number whose leave-one-out values are not all finite has
-  no error (NaN): it depends on a single run.
+  no error (NaN): it depends on a single run. With two common seeds (two piles of an expensive
+  setting) there is no jackknife: both sides' numbers are computed and compared without an
+  error, and nothing counts as moved.
 
 The figure documents of both ensembles on the common seeds are written beside the comparison, so
 that the report judges the paper's claims on each (``tiltpile.report``) and says whether every
@@ -52,6 +54,9 @@ PER_SEED = ("theta_first_onset", "theta_first_slide", "n_onsets", "z_quiet", "n_
             "z_start", "theta_first_change", "phi_start", "fabric_start", "ke_quiet")
 # a shift larger than this many combined standard errors moves a figure number
 SIGMA_LIMIT = 2.0
+# the fewest common seeds compared (pile against pile, the figure numbers without an error) and
+# the fewest that give the figure numbers a jackknife error and chance's count (--null)
+MIN_SEEDS, JACKKNIFE_SEEDS = 2, 3
 
 
 # ----------------------------------------------------------------------------------------------
@@ -208,25 +213,30 @@ def ensemble_against_ensemble(ref, ens, stems=FIGURES, notebooks_dir="notebooks"
     figure, key, ref, value, shift, se_ref, se, sigma (shift / sqrt(se_ref^2 + se^2); 0 where
     the shift is 0, NaN where an error is), se_paired (jackknife of the shift, the same seed left
     out of both), sigma_paired, moved (|sigma| > SIGMA_LIMIT); and the figure documents of both
-    on the common seeds ({stem: document}). ``progress``: called with a line per evaluation."""
+    on the common seeds ({stem: document}). ``progress``: called with a line per evaluation.
+    With 2 common seeds no number has an error (NaN; the jackknife needs 3 runs)."""
     seeds = common_seeds(ref, ens)
-    if len(seeds) < 3:
-        raise ValueError(f"the ensembles share {len(seeds)} seeds: the jackknife needs 3 or more")
+    if len(seeds) < MIN_SEEDS:
+        raise ValueError(f"the ensembles share {len(seeds)} seeds: the comparison needs "
+                         f"{MIN_SEEDS} or more")
     a, b = subset(ref, seeds), subset(ens, seeds)
     say = progress or (lambda line: None)
     say(f"all {len(seeds)} seeds")
     na, nb = figure_documents(a, stems, notebooks_dir), figure_documents(b, stems, notebooks_dir)
     fa, fb = _all_scalars(na), _all_scalars(nb)
     loo_a, loo_b = [], []
-    for k, s in enumerate(seeds):
+    for k, s in enumerate(seeds if len(seeds) >= JACKKNIFE_SEEDS else ()):
         say(f"leaving out seed {s} ({k + 1} of {len(seeds)})")
         rest = [t for t in seeds if t != s]
         loo_a.append(_all_scalars(figure_documents(subset(a, rest), stems, notebooks_dir)))
         loo_b.append(_all_scalars(figure_documents(subset(b, rest), stems, notebooks_dir)))
-    se_a, se_b = jackknife(fa, loo_a), jackknife(fb, loo_b)
     shift_full = {k: fb[k] - fa[k] for k in fa if k in fb}
-    se_d = jackknife(shift_full, [{k: lb.get(k, math.nan) - la.get(k, math.nan) for k in shift_full}
-                                  for la, lb in zip(loo_a, loo_b)])
+    if loo_a:
+        se_a, se_b = jackknife(fa, loo_a), jackknife(fb, loo_b)
+        se_d = jackknife(shift_full, [{k: lb.get(k, math.nan) - la.get(k, math.nan)
+                                       for k in shift_full} for la, lb in zip(loo_a, loo_b)])
+    else:
+        se_a = se_b = se_d = {k: math.nan for k in fa.keys() | fb.keys()}
     rows = []
     for key, d in shift_full.items():
         stem, name = key.split(".", 1)
@@ -355,6 +365,9 @@ def null_moved(ref, ens, table: pd.DataFrame, flips: int, seed: int = 0, stems=F
     if flips < 1:
         raise ValueError(f"flips must be at least 1, got {flips}")
     seeds = common_seeds(ref, ens)
+    if len(seeds) < JACKKNIFE_SEEDS:
+        raise ValueError(f"the ensembles share {len(seeds)} seeds: what chance moves needs "
+                         f"{JACKKNIFE_SEEDS} or more (an error to move by)")
     a, b = subset(ref, seeds), subset(ens, seeds)
     comb = {f"{r['figure']}.{r['key']}": math.hypot(r["se_ref"], r["se"])
             for r in table.to_dict("records")}

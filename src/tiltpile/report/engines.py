@@ -120,9 +120,13 @@ def render_paper(study: dict | None, judged: dict[str, list], claims: list[Claim
               f"`{ref}`'s records of the same seeds: {n} of {PAPER_TARGET} piles"
               + ("." if n >= PAPER_TARGET else " so far (**preliminary**)."), ""]
     lines += pile_table(study)
-    lines += ["", f"Every figure number ensemble against ensemble: {study['n_moved']} of "
-              f"{study['n_with_error']} numbers with a jackknife error differ by more than "
-              f"{study['sigma_limit']:g} combined standard errors."]
+    if study["n_with_error"]:
+        lines += ["", f"Every figure number ensemble against ensemble: {study['n_moved']} of "
+                  f"{study['n_with_error']} numbers with a jackknife error differ by more than "
+                  f"{study['sigma_limit']:g} combined standard errors."]
+    else:
+        lines += ["", f"On {n} piles no figure number has a jackknife error (it needs 3 runs): "
+                  "the two engines' figures meet through the claims' verdicts below."]
     if all(s in judged for s in PAPER_PAIR):
         lines += ["", f"The paper's claims on each engine's {n} piles (few piles: a verdict whose "
                   "number needs many runs may turn on one pile):", ""]
