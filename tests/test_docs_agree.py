@@ -225,3 +225,22 @@ def test_what_we_found_quotes_the_committed_friction_study():
                    f"delta rises from {est(lo, 'delta'):.1f} to {est(hi, 'delta'):.1f}",
                    f"({est(lo, 's_max_near'):.0f} to {est(hi, 's_max_near'):.0f} grains)"):
         assert quoted in FOUND, quoted
+
+
+def test_what_we_found_quotes_the_committed_history_rate_check():
+    """The README's paper-fast sentence gives the committed same-piles study's numbers: its seeds,
+    the slide's paired difference with its interval, the moved count and chance's 95th
+    percentile; and it says the rate matters only when the report's decision is "fails"."""
+    from tiltpile.report import CLAIMS, history_rate
+    from tiltpile.report.document import judge_all, load_figures
+
+    study = history_rate.load(ROOT / "figures" / "paper-fast")
+    d = study["pile_against_pile"]["difference"]["theta_first_slide"]
+    assert f"`paper-fast`, {len(study['seeds'])} of the same" in FOUND
+    assert f"slide {d['mean']:.2f} [{d['ci_low']:.2f}, {d['ci_high']:.2f}] deg later" in FOUND
+    assert (f"{study['n_moved']} figure numbers move where chance moves at most "
+            f"{study['null']['p95']:.0f}") in FOUND
+    judged = {s: judge_all(load_figures(d_), CLAIMS)
+              for s, d_ in history_rate.side_dirs(ROOT / "figures" / "paper-fast").items()}
+    word = history_rate.decision(study, len(history_rate.differing(judged, CLAIMS)))
+    assert ("the history's rate matters" in FOUND) == (word == "fails")
