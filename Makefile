@@ -76,6 +76,7 @@ RUNS_paper := 50
 RUNS_paper-fresh := 50
 RUNS_paper-fast := 16
 RUNS_paper-fast-dem := 2
+RUNS_paper-5x := 8
 RUNS ?= $(RUNS_$(PRESET))
 
 # The analysis's numbers bit for bit from one x86-64 machine to another. numpy's AVX-512 kernels

@@ -66,6 +66,7 @@ PRESET_TABLE = (
     Preset("paper-fresh", 50, "figures/paper-fresh", "claims"),
     Preset("paper-fast", 16, "figures/paper-fast", "fig2"),
     Preset("paper-fast-dem", 2, "figures/paper-fast-dem", ""),
+    Preset("paper-5x", 8, "figures/paper-5x", ""),
 )
 PRESETS = tuple(p.name for p in PRESET_TABLE)
 

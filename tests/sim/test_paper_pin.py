@@ -91,6 +91,17 @@ def test_paper_fast_is_the_paper_preset_with_a_10x_history():
     assert fast.protocol.pretilt_per_step_deg == 10 * paper.protocol.tilt_per_step_deg
 
 
+def test_paper_5x_is_the_paper_preset_with_a_5x_history():
+    """paper-5x, the next rate issue 53 checks, differs from paper in the history's rate only."""
+    paper, five = config.load("paper"), config.load("paper-5x")
+    for section in ("scene", "solver", "health"):
+        assert getattr(five, section) == getattr(paper, section)
+    differ = {f for f in type(paper.protocol).__dataclass_fields__
+              if getattr(paper.protocol, f) != getattr(five.protocol, f)}
+    assert differ == {"pretilt_per_step_deg"}
+    assert five.protocol.pretilt_per_step_deg == 5 * paper.protocol.tilt_per_step_deg
+
+
 def test_paper_fast_first_frames_are_bit_identical():
     cfg = config.load("paper-fast", overrides=list(SMALL_FAST))
     frames, legs, end = [], None, None
