@@ -35,6 +35,13 @@ def test_documents_are_the_notebooks_json(stem, ens, smoke_ensemble, tmp_path):
     assert sp.figure_documents(ens, (stem,))[stem] == written
 
 
+def raised_z(ens, dz=0.1):
+    """``ens`` with every grain's z raised by ``dz``: a known shift of every z-derived number."""
+    f = ens.frames.copy()
+    f["z"] = f["z"] + dz
+    return replace(ens, frames=f)
+
+
 def test_jackknife_of_a_mean_is_its_standard_error():
     x = np.array([1.0, 4.0, 2.5, 7.0, 3.0])
     loo = [{"m": float(np.delete(x, i).mean())} for i in range(x.size)]
@@ -63,9 +70,7 @@ def test_an_ensemble_against_itself_moves_nothing(ens):
 def test_a_known_shift_is_measured(ens):
     """Every grain's z raised by 0.1: Fig. 2's <z> moves by 0.1 exactly, a number the shift does
     not touch (the first onsets) stays, and the paired error of a uniform shift is 0."""
-    f = ens.frames.copy()
-    f["z"] = f["z"] + 0.1
-    shifted = replace(ens, frames=f)
+    shifted = raised_z(ens)
     table, _, _ = sp.ensemble_against_ensemble(ens, shifted, ("fig2_avalanche_criterion",))
     t = table.set_index("key")
     assert t.loc["z_quiet_mean", "shift"] == pytest.approx(0.1, abs=1e-12)
@@ -78,9 +83,7 @@ def test_two_piles_are_compared_without_an_error(ens, tmp_path):
     an error or moves, the pile-against-pile table has its two differences, chance's count is
     refused; one seed is refused."""
     two = sp.subset(ens, ens.seeds[:2])
-    f = two.frames.copy()
-    f["z"] = f["z"] + 0.1
-    shifted = replace(two, frames=f)
+    shifted = raised_z(two)
     table, na, _ = sp.ensemble_against_ensemble(two, shifted, ("fig2_avalanche_criterion",))
     t = table.set_index("key")
     assert t.loc["z_quiet_mean", "shift"] == pytest.approx(0.1, abs=1e-12)

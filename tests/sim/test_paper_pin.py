@@ -25,6 +25,7 @@ from __future__ import annotations
 import hashlib
 
 import numpy as np
+import pytest
 
 from tiltpile import config
 from tiltpile.sim import protocol
@@ -78,28 +79,20 @@ SMALL_FAST_DIGEST = "3cfb53c2587f673566f7664922d1f2f579460b69ae9e815f274fc61fde1
 SMALL_FAST_SWEEPS = 1266249
 
 
-def test_paper_fast_is_the_paper_preset_with_a_10x_history():
-    """paper-fast differs from paper in the history's rate only: its deposition (pinned above by
-    the paper prefix), solver, ramp and frames are the paper's."""
-    paper, fast = config.load("paper"), config.load("paper-fast")
-    assert fast.hash() == PAPER_FAST_HASH
+@pytest.mark.parametrize("name, factor", [("paper-fast", 10), ("paper-5x", 5)])
+def test_the_faster_histories_are_the_paper_preset_but_for_the_historys_rate(name, factor):
+    """paper-fast (10x) and paper-5x, the next rate issue 53 checks, differ from paper in the
+    history's rate only: their deposition (pinned above by the paper prefix), solver, ramp and
+    frames are the paper's."""
+    paper, fast = config.load("paper"), config.load(name)
+    if name == "paper-fast":
+        assert fast.hash() == PAPER_FAST_HASH
     for section in ("scene", "solver", "health"):
         assert getattr(fast, section) == getattr(paper, section)
     differ = {f for f in type(paper.protocol).__dataclass_fields__
               if getattr(paper.protocol, f) != getattr(fast.protocol, f)}
     assert differ == {"pretilt_per_step_deg"}
-    assert fast.protocol.pretilt_per_step_deg == 10 * paper.protocol.tilt_per_step_deg
-
-
-def test_paper_5x_is_the_paper_preset_with_a_5x_history():
-    """paper-5x, the next rate issue 53 checks, differs from paper in the history's rate only."""
-    paper, five = config.load("paper"), config.load("paper-5x")
-    for section in ("scene", "solver", "health"):
-        assert getattr(five, section) == getattr(paper, section)
-    differ = {f for f in type(paper.protocol).__dataclass_fields__
-              if getattr(paper.protocol, f) != getattr(five.protocol, f)}
-    assert differ == {"pretilt_per_step_deg"}
-    assert five.protocol.pretilt_per_step_deg == 5 * paper.protocol.tilt_per_step_deg
+    assert fast.protocol.pretilt_per_step_deg == factor * paper.protocol.tilt_per_step_deg
 
 
 def test_paper_fast_first_frames_are_bit_identical():
