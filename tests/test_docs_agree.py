@@ -244,3 +244,11 @@ def test_what_we_found_quotes_the_committed_history_rate_check():
               for s, d_ in history_rate.side_dirs(ROOT / "figures" / "paper-fast").items()}
     word = history_rate.decision(study, len(history_rate.differing(judged, CLAIMS)))
     assert ("the history's rate matters" in FOUND) == (word == "fails")
+
+
+def test_what_we_found_counts_the_piles_of_the_committed_definitions_study():
+    """The definitions bullet names as many 4000-grain piles as figures/paper-fast/definitions.json
+    holds, so that it is updated with the study."""
+    path = ROOT / "figures" / "paper-fast" / "definitions.json"
+    n = json.loads(path.read_text())["n_runs"]
+    assert f"On {n} piles of 4000 grains" in FOUND
