@@ -225,7 +225,8 @@ def ensemble_against_ensemble(ref, ens, stems=FIGURES, notebooks_dir="notebooks"
     na, nb = figure_documents(a, stems, notebooks_dir), figure_documents(b, stems, notebooks_dir)
     fa, fb = _all_scalars(na), _all_scalars(nb)
     loo_a, loo_b = [], []
-    for k, s in enumerate(seeds if len(seeds) >= JACKKNIFE_SEEDS else ()):
+    jackknifed = seeds if len(seeds) >= JACKKNIFE_SEEDS else []
+    for k, s in enumerate(jackknifed):
         say(f"leaving out seed {s} ({k + 1} of {len(seeds)})")
         rest = [t for t in seeds if t != s]
         loo_a.append(_all_scalars(figure_documents(subset(a, rest), stems, notebooks_dir)))
