@@ -61,11 +61,57 @@ def _read_note(fd: int) -> str:
     return " ".join(text.split())
 
 
+def _noted(text: str, over: int = 0) -> bytes:
+    """A note as written into a lock, padded with blanks to the ``over`` bytes of an older note
+    that it replaces: one ``pwrite`` then replaces it whole (no truncation, no moment without a
+    note; :func:`_read_note` drops the blanks)."""
+    return (text + "\n").encode().ljust(over, b" ")
+
+
+def _held_new(lock: Path, text: str) -> int | None:
+    """Create ``lock`` already held and already holding its note: a file written and locked
+    unnamed (``O_TMPFILE``, or a hidden name beside it) and then linked to ``lock``, so that no
+    other process ever sees ``lock`` without its holder. The descriptor, or None if ``lock``
+    exists."""
+    import fcntl
+
+    try:
+        fd, tmp = os.open(lock.parent, os.O_TMPFILE | os.O_RDWR, 0o644), None
+    except (AttributeError, OSError):   # no O_TMPFILE (not Linux, or this file system)
+        tmp = lock.with_name(f".{lock.name}.{os.getpid()}.{threading.get_ident()}")
+        fd = os.open(tmp, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o644)
+    try:
+        os.pwrite(fd, _noted(text), 0)
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)    # a new file: nobody else has it
+        try:
+            if tmp is None:   # linkat(2) of /proc/self/fd/N, as open(2) documents for O_TMPFILE
+                fds = os.open("/proc/self/fd", os.O_RDONLY)
+                try:                # (a src_dir_fd makes Python call linkat with AT_SYMLINK_FOLLOW)
+                    os.link(str(fd), lock, src_dir_fd=fds, follow_symlinks=True)
+                finally:
+                    os.close(fds)
+            else:
+                os.link(tmp, lock)
+        except FileExistsError:
+            os.close(fd)
+            return None
+    except BaseException:
+        os.close(fd)
+        raise
+    finally:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+    return fd
+
+
 def lock_file(lock: str | Path, holder: str | None = None, *, wait: bool = False,
               on_wait=None) -> int:
-    """Take the exclusive advisory ``flock`` of file ``lock`` (created if missing) and write
-    ``holder`` (default :func:`note`) into it; returns the descriptor that holds it (give it to
-    :func:`unlock_file`). Held by another process: ``LockHeld`` (``wait=False``), or
+    """Take the exclusive advisory ``flock`` of file ``lock`` and write ``holder`` (default
+    :func:`note`) into it; returns the descriptor that holds it (give it to
+    :func:`unlock_file`). A missing ``lock`` appears already held with its note
+    (:func:`_held_new`); one left by a holder that died without removing it is taken over and
+    its note replaced in one write. Held by another process: ``LockHeld`` (``wait=False``), or
     ``on_wait(its note)`` once and a wait until it is free (``wait=True``). An OSError of the
     file itself (no permission, a full disk) propagates."""
     import fcntl
@@ -74,7 +120,13 @@ def lock_file(lock: str | Path, holder: str | None = None, *, wait: bool = False
     text = note() if holder is None else holder
     told = False
     while True:
-        fd = os.open(lock, os.O_RDWR | os.O_CREAT, 0o644)
+        fd = _held_new(lock, text)
+        if fd is not None:
+            return fd
+        try:
+            fd = os.open(lock, os.O_RDWR)
+        except FileNotFoundError:      # released and removed meanwhile: create it again
+            continue
         try:
             try:
                 fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
@@ -94,12 +146,11 @@ def lock_file(lock: str | Path, holder: str | None = None, *, wait: bool = False
         except BaseException:
             os.close(fd)
             raise
-        if same:
+        if same:     # a lock file left by a holder that died: ours now
             break
         os.close(fd)
     try:
-        os.ftruncate(fd, 0)
-        os.pwrite(fd, (text + "\n").encode(), 0)
+        os.pwrite(fd, _noted(text, os.fstat(fd).st_size), 0)
     except OSError:
         pass  # the lock holds without its note
     return fd

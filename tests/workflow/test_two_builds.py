@@ -29,7 +29,7 @@ import pytest
 from makehelpers import MAKE_ENV
 
 from tiltpile import config
-from tiltpile.outputs import OutputBusy, lock_file, output_lock, replaced_whole, unlock_file
+from tiltpile.outputs import LockHeld, OutputBusy, lock_file, output_lock, replaced_whole, unlock_file
 from tiltpile.runner import simulate
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -111,6 +111,54 @@ def test_the_lock_of_one_process_taken_twice_is_an_error_not_a_wait_forever(tmp_
         with pytest.raises(RuntimeError, match="already held by this process"):
             with output_lock(tmp_path, ".x.lock", "a", wait=True):
                 pass
+
+
+def test_a_lock_file_is_never_seen_held_without_its_holder(tmp_path, monkeypatch):
+    """The moment a lock is taken, the file at the lock's path (if any) already names a holder:
+    a second process that finds it held reads who holds it, never an empty note (a make once
+    said "another process" because it read the lock between its creation and its note). Also
+    for a lock file left by a holder that died, whose longer note the new one replaces."""
+    import fcntl
+
+    lock = tmp_path / ".build.lock"
+    real, seen = fcntl.flock, []
+
+    def flock(fd, op):
+        real(fd, op)
+        if op & fcntl.LOCK_EX and lock.exists():
+            seen.append(lock.read_text())
+
+    monkeypatch.setattr(fcntl, "flock", flock)
+    fd = lock_file(lock, "make figures (pid 1 on here)")
+    assert lock.read_text() == "make figures (pid 1 on here)\n"
+    os.close(fd)                                      # dies without removing it: left behind
+    fd = lock_file(lock, "a (pid 2 on here)")
+    assert lock.read_text().rstrip(" ") == "a (pid 2 on here)\n"   # the older note replaced whole
+    unlock_file(lock, fd)
+    assert seen and all(note.strip() for note in seen), seen
+
+
+def test_a_lock_taken_and_released_in_a_loop_always_names_its_holder_to_another_process(tmp_path):
+    lock = tmp_path / ".build.lock"
+    taker = subprocess.Popen(
+        [sys.executable, "-c", "import sys; from tiltpile.outputs import LockHeld, lock_file, unlock_file\n"
+         "for _ in range(3000):\n    try:\n        fd = lock_file(sys.argv[1], 'taker (pid 7 on h)')\n"
+         "    except LockHeld:\n        continue\n    unlock_file(sys.argv[1], fd)",
+         str(lock)], env=ENV)
+    notes = []
+    try:
+        while taker.poll() is None:
+            try:
+                fd = lock_file(lock, "reader")
+            except LockHeld as e:
+                notes.append(e.holder)
+            else:
+                unlock_file(lock, fd)
+    finally:
+        taker.kill()
+        taker.wait()
+    assert notes, "the reader never found the lock held"
+    assert set(notes) == {"taker (pid 7 on h)"}, {n for n in notes if n != "taker (pid 7 on h)"}
 
 
 def test_make_holds_the_figures_lock_until_make_exits(tmp_path):
