@@ -300,7 +300,8 @@ REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparati
                   $(REPORT_ROOT)/study-friction/study.json \
                   $(REPORT_ROOT)/paper-fast/same-piles/same_piles.json \
                   $(REPORT_ROOT)/paper-fast/same-piles/*/fig*.json \
-                  $(REPORT_ROOT)/paper-fast/definitions.json)
+                  $(REPORT_ROOT)/paper-fast/definitions.json \
+                  $(REPORT_ROOT)/paper-fast/definitions-all.json)
 $(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli/report.py src/tiltpile/__init__.py \
            src/tiltpile/outputs.py src/tiltpile/paper_values.py | $(STAMP)
 	$(PY) -m tiltpile report --figures $(FIGURES) --out $@
@@ -457,19 +458,21 @@ engines: | $(STAMP)
 	$(ANALYSIS_ENV) $(PY) -m tiltpile same-piles $(ENGINES_REF) $(ENGINES_DEM) --ref-label $(ENGINES) \
 	  --label $(ENGINES)-dem --out figures/$(ENGINES)-dem/same-piles --quiet
 
-# `make definition-records [PRESET=paper-fast] [DATA=dir] [DEF_G=0.00216] [WORKERS=W]`: the records of
-# every finished run of DATA at the parameters of the definitions the 4000-grain study keeps
-# (the list at DEF_G, the g fitted at 1000 grains; the mixed rule; stride 2), into
-# BASE_FIGURES/definitions/{list,mixed,stride-2}/ (up-to-date ones skipped): run it with
-# `make records` as runs finish, so that `tiltpile definitions BASE_FIGURES/records --records
-# BASE_FIGURES/definitions --g DEF_G` needs no run files.
+# `make definition-records [PRESET=paper-fast] [DATA=dir] [DEF_G=0.00216] [DEF_KEYS=keys] [WORKERS=W]`:
+# the records of every finished run of DATA at the parameters of the definitions DEF_KEYS
+# (comma-separated; default the three the 4000-grain study keeps for every run: the list at
+# DEF_G, the g fitted at 1000 grains; the mixed rule; stride 2; `all` for every definition with
+# analysis parameters), into BASE_FIGURES/definitions/<key>/ (up-to-date ones skipped;
+# `tiltpile definitions --write-records`): run it with `make records` as runs finish, so that
+# `tiltpile definitions BASE_FIGURES/records --records BASE_FIGURES/definitions --g DEF_G`
+# needs no run files.
 DEF_G ?= 0.00216
+DEF_KEYS ?= list,mixed,stride-2
 .PHONY: definition-records
 definition-records: | $(STAMP)
 	@test -n "$(wildcard $(DATA)/run_*.h5)" || { echo "make definition-records: no run files in DATA=$(DATA)"; exit 2; }
-	$(ANALYSIS_ENV) $(PY) -m tiltpile record $(DATA) --out $(BASE_FIGURES)/definitions/list --params '{"contact_rule": "gap:$(DEF_G)"}' $(if $(WORKERS),--workers $(WORKERS)) --quiet
-	$(ANALYSIS_ENV) $(PY) -m tiltpile record $(DATA) --out $(BASE_FIGURES)/definitions/mixed --params '{"contact_rule": "gap:$(DEF_G)", "lost_rule": "force"}' $(if $(WORKERS),--workers $(WORKERS)) --quiet
-	$(ANALYSIS_ENV) $(PY) -m tiltpile record $(DATA) --out $(BASE_FIGURES)/definitions/stride-2 --params '{"frame_stride": 2}' $(if $(WORKERS),--workers $(WORKERS)) --quiet
+	$(ANALYSIS_ENV) $(PY) -m tiltpile definitions $(DATA) --write-records $(BASE_FIGURES)/definitions \
+	  --g $(DEF_G) $(if $(filter all,$(DEF_KEYS)),,--only $(DEF_KEYS)) $(if $(WORKERS),--workers $(WORKERS)) --quiet
 
 # `make study KEY=section.key VALUES="v1 v2 ..." [PRESET=default] [RUNS=M] [WORKERS=W] [NAME=name]
 #             [HISTORY=preset|repose+D] [DATA=/path/outside/the/checkout] [STUDY_FIGURES=dir]`:

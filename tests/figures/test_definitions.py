@@ -177,3 +177,93 @@ def test_from_records_the_study_gives_what_the_run_files_give(smoke_ensemble, sm
             assert got[key]["documents"][stem]["numbers"] == fig["numbers"], (key, stem)
     with pytest.raises(ValueError, match="give g"):
         fd.study(tmp_path / "records", "smoke", records=tmp_path / "defs", progress=False)
+
+
+def test_the_cli_writes_each_definitions_records_and_studies_a_chosen_few(smoke_ensemble, smoke_study,
+                                                                          tmp_path, capsys):
+    """`tiltpile definitions DIR --write-records ROOT --g G --only KEYS` writes ROOT/<key>/ at
+    each definition's parameters (what the study reads back), and `--only` chooses the
+    definitions a study evaluates, named in its command."""
+    import numpy as np
+
+    from tiltpile.cli import main
+    from tiltpile.figures.records import write_records
+
+    g = smoke_study["fit"]["g"]
+    root = tmp_path / "defs"
+    assert main(["definitions", str(smoke_ensemble), "--write-records", str(root), "--g", f"{g!r}",
+                 "--only", "list", "--workers", "1", "--quiet"]) == 0
+    assert capsys.readouterr().out.splitlines() == [f"list: 3 record(s) written; {root / 'list'}"]
+    assert sorted(p.name for p in root.iterdir()) == ["list"]
+    assert main(["definitions", str(smoke_ensemble), "--write-records", str(root), "--g", f"{g!r}",
+                 "--only", "list", "--quiet"]) == 0                        # up to date: none again
+    assert capsys.readouterr().out.splitlines() == [f"list: 0 record(s) written; {root / 'list'}"]
+
+    write_records(smoke_ensemble, tmp_path / "records", workers=1, progress=False)
+    out = tmp_path / "study.json"
+    assert main(["definitions", str(tmp_path / "records"), "--records", str(root), "--g", f"{g!r}",
+                 "--only", "list", "--out", str(out), "--quiet"]) == 0
+    doc = json.loads(out.read_text())
+    assert doc["command"].endswith("--only list") and doc["missing"] == []
+    assert [d["key"] for d in doc["definitions"]] == ["force", "list"]
+    want = {d["key"]: d for d in smoke_study["definitions"]}["list"]["documents"]
+    for stem, fig in want.items():
+        got = doc["definitions"][1]["documents"][stem]["numbers"]
+        assert json.dumps(got, sort_keys=True) == json.dumps(
+            json.loads(json.dumps(fig["numbers"], default=lambda x: np.asarray(x).tolist())),
+            sort_keys=True), stem
+
+
+@pytest.mark.parametrize("extra, words", [
+    (["--only", "list,nope"], "--only list,nope: no definition nope"),
+    (["--only", ","], "no definition (none given)"),
+    (["--write-records", "ROOT"], "--write-records needs --g"),
+    (["--write-records", "ROOT", "--g", "0.002", "--out", "x.json"], "leave out --records and --out"),
+    (["--write-records", "ROOT", "--g", "0.002", "--workers", "0"], "--workers must be >= 1"),
+    (["--workers", "2", "--out", "x.json"], "--workers is only for --write-records"),
+    ([], "--out FILE is required"),
+])
+def test_bad_options_stop_in_one_line_with_nothing_written(smoke_ensemble, tmp_path, capsys, extra, words):
+    from tiltpile.cli import main
+
+    argv = ["definitions", str(smoke_ensemble)] + [
+        str(tmp_path / a) if a in ("ROOT", "x.json") else a for a in extra]
+    assert main(argv) == 2
+    err = capsys.readouterr().err.strip()
+    assert words in err and "\n" not in err, err
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_every_definition_on_fewer_piles_says_what_it_adds_and_where_its_verdicts_differ(tmp_path):
+    """figures/paper-fast/definitions-all.json (every definition, on the piles whose run files
+    outlived the larger study) gets its own section, naming its seeds, the definitions only it
+    holds, and each verdict of a shared definition that differs from the larger study's."""
+    a, b = load_figures(ROOT / "figures"), load_figures(ROOT / "figures" / "paper")
+
+    def d(key, figs):
+        return {"key": key, "label": key, "what": key, "params": {}, "notebook": {}, "documents": figs}
+
+    fast = tmp_path / "paper-fast"
+    fast.mkdir()
+    assert rd.render_every(fast, CLAIMS) == []
+    big = {"n_runs": 16, "n_grains": 4000, "fit": {"g": 0.002, "given": True},
+           "definitions": [d("force", a), d("list", a)]}
+    every = {"n_runs": 5, "n_grains": 4000, "seeds": [13, 14, 15, 16, 17], "fit": {"g": 0.002, "given": True},
+             "definitions": [d("force", a), d("list", b), d("touching", b)]}
+    (fast / rd.FILE).write_text(json.dumps(big))
+    (fast / rd.EVERY_FILE).write_text(json.dumps(every))
+    lines = rd.render_every(fast, CLAIMS)
+    assert lines[1] == ("## What the disagreements depend on (5 cycled piles of 4000 grains, "
+                        "`paper-fast`, every definition)")
+    v = rd.verdicts(every, CLAIMS)
+    w = rd.verdicts(big, CLAIMS)
+    differ = [c.text for c in CLAIMS if v["list"][c.key][1] != w["list"][c.key][1]]
+    assert differ                                   # the two scales' figures differ somewhere
+    said = lines[3]
+    assert said.startswith("These 5 piles (seeds 13-17) are the ones whose run files outlived")
+    assert "carry *touching*" in said
+    assert f"{len(differ)} of {2 * len(CLAIMS)} verdicts differ" in said
+    assert all(f"{c} under list" in said for c in differ)
+    every["definitions"][1] = d("list", a)          # the same verdicts as the larger study
+    (fast / rd.EVERY_FILE).write_text(json.dumps(every))
+    assert "every verdict is the same on these piles as on the 16 piles" in rd.render_every(fast, CLAIMS)[3]

@@ -16,7 +16,7 @@ def add_parser(sub) -> None:
     p.add_argument("dir", type=Path, metavar="DIR",
                    help="an ensemble directory of run_*.h5 (records are not enough: near pairs come "
                         "from every frame's positions)")
-    p.add_argument("--out", type=Path, required=True, metavar="FILE",
+    p.add_argument("--out", type=Path, default=None, metavar="FILE",
                    help="the study's JSON (the report reads figures/definitions.json)")
     p.add_argument("--g", type=float, default=None, metavar="G",
                    help="the contact list's gap in d (default: fitted by <z> = 3.5 on the quiet frames)")
@@ -24,6 +24,15 @@ def add_parser(sub) -> None:
                    help="evaluate from records: DIR the records at the default parameters, "
                         "ROOT/<definition>/ those written at each definition's (tiltpile record "
                         "--params); needs --g")
+    p.add_argument("--only", default=None, metavar="KEYS",
+                   help="evaluate (or write the records of) only these definitions, comma-separated "
+                        "keys such as list,mixed,stride-2 (force is always evaluated; default: all)")
+    p.add_argument("--write-records", type=Path, default=None, metavar="ROOT",
+                   help="instead of the study: the records of DIR's finished runs at each "
+                        "definition's analysis parameters, into ROOT/<definition>/ (up-to-date ones "
+                        "skipped), what --records reads; needs --g; --out not used")
+    p.add_argument("--workers", type=int, default=None,
+                   help="with --write-records: processes for observables not cached yet")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
@@ -52,13 +61,41 @@ def run(args) -> int:
             raise ConfigError("--records needs --g (the fit of g needs the run files)")
     if args.g is not None and not args.g > 0:
         raise ConfigError(f"--g must be > 0 (d), got {args.g}")
+    only = None
+    if args.only is not None:
+        only = [k.strip() for k in args.only.split(",") if k.strip()]
+        keys = [d["key"] for d in df.definitions(1.0)]
+        unknown = [k for k in only if k not in keys]
+        if unknown or not only:
+            raise ConfigError(f"--only {args.only}: no definition {', '.join(unknown) or '(none given)'}; "
+                              f"the study has {', '.join(keys)}")
+    if args.workers is not None and args.write_records is None:
+        raise ConfigError("--workers is only for --write-records")
+    if args.write_records is not None:
+        if args.records is not None or args.out is not None:
+            raise ConfigError("--write-records writes records, not the study: leave out --records and --out")
+        if not sorted(args.dir.glob("run_*.h5")):
+            raise ConfigError(f"{args.dir}: no run_*.h5 files (--write-records needs the run files)")
+        if args.g is None:
+            raise ConfigError("--write-records needs --g (the gap of the list definitions)")
+        if args.workers is not None and args.workers < 1:
+            raise ConfigError(f"--workers must be >= 1, got {args.workers}")
+        check_output(args.write_records, "records root", directory=True)
+        for key, n, root in df.write_definition_records(args.dir, args.write_records, args.g, only,
+                                                        workers=args.workers,
+                                                        progress=not args.quiet):
+            print(f"{key}: {n} record(s) written; {root}", file=sys.stdout)
+        return 0
+    if args.out is None:
+        raise ConfigError("--out FILE is required (the study's JSON), unless --write-records")
     check_output(args.out, "--out")
     command = "tiltpile definitions " + " ".join(
         [str(args.dir) if args.records is not None else args.dir.name]
         + ([f"--g {args.g:g}"] if args.g is not None else [])
-        + ([f"--records {args.records}"] if args.records is not None else []))
+        + ([f"--records {args.records}"] if args.records is not None else [])
+        + ([f"--only {','.join(only)}"] if only is not None else []))
     doc = df.study(args.dir, _preset_of(args.dir), g=args.g, progress=not args.quiet,
-                   command=command, records=args.records)
+                   command=command, records=args.records, only=only)
     path = df.write_study(doc, args.out)
     print(f"{len(doc['definitions'])} definitions of {doc['n_runs']} runs, g = {doc['fit']['g']:g} d; "
           f"{path}", file=sys.stdout)

@@ -218,6 +218,24 @@ def study(data_dir, preset: str | None = None, g: float | None = None, target: f
             "missing": missing, "fit": fit, "definitions": out}
 
 
+def write_definition_records(data_dir, root, g: float, only=None, workers: int | None = None,
+                             progress: bool = True):
+    """The records of every finished run of ``data_dir`` at the analysis parameters of each
+    definition that has some (``only``: of these keys), into ``root/<key>/``
+    (:func:`tiltpile.figures.records.write_records`, up-to-date ones skipped): what
+    :func:`study` reads with ``records=root``. Yields (key, records written, directory)."""
+    from .records import write_records
+
+    if not g > 0:
+        raise ValueError(f"g must be > 0 (d), got {g}")
+    for d in definitions(g):
+        if not d["params"] or (only is not None and d["key"] not in only):
+            continue
+        out = Path(root) / d["key"]
+        done = write_records(data_dir, out, workers=workers, progress=progress, params=d["params"])
+        yield d["key"], int((done["status"] == "written").sum()), out
+
+
 def _declares(stem: str, params: dict, notebooks_dir) -> bool:
     from .same_piles import _notebook_cells
 

@@ -24,8 +24,7 @@ _MARK = {AGREES: "agrees", DISAGREES: "**disagrees**", INCONCLUSIVE: "inconclusi
 
 def load(figures_dir) -> dict | None:
     """The study's JSON of ``figures_dir`` (None when it was not run there)."""
-    p = Path(figures_dir) / FILE
-    return json.loads(p.read_text()) if p.is_file() else None
+    return load_file(Path(figures_dir) / FILE)
 
 
 def verdicts(doc: dict, claims: list[Claim]) -> dict[str, dict[str, tuple[str, str]]]:
@@ -144,6 +143,53 @@ def render_large(fast_dir, claims: list[Claim]) -> list[str]:
              + (f"; preliminary, {n} of the {LARGE_RUNS} piles the verdicts wait for"
                 if n < LARGE_RUNS else ""))
     return render(doc, claims, scale=where)
+
+
+#: every definition on the piles whose run files outlived the 16-pile study's records
+#: (``tiltpile definitions ... --out figures/paper-fast/definitions-all.json``)
+EVERY_FILE = "definitions-all.json"
+
+
+def render_every(fast_dir, claims: list[Claim]) -> list[str]:
+    """The section at 4000 grains for every definition, on the fewer piles that hold the records
+    of all of them (``EVERY_FILE``), with how far its verdicts of the definitions the 16-pile
+    study holds too differ from that study's: what the fewer piles cost. [] without it."""
+    doc = load_file(Path(fast_dir) / EVERY_FILE)
+    if not doc:
+        return []
+    seeds = doc.get("seeds") or []
+    where = (f"{doc.get('n_runs')} cycled piles of {doc.get('n_grains')} grains, `paper-fast`, "
+             "every definition")
+    lines = render(doc, claims, scale=where)
+    big = load(fast_dir)
+    if big:
+        v, w = verdicts(doc, claims), verdicts(big, claims)
+        labels = {d["key"]: d["label"] for d in doc["definitions"]}
+        shared = [k for k in v if k in w]
+        differ = [(labels[k], c.text) for k in shared for c in claims if v[k][c.key][1] != w[k][c.key][1]]
+        extra = [labels[k] for k in v if k not in w]
+        said = ("every verdict is the same on these piles as on the "
+                f"{big.get('n_runs')}" if not differ else
+                f"{len(differ)} of {len(shared) * len(claims)} verdicts differ from those on the "
+                f"{big.get('n_runs')}")
+        lines[3:3] = [f"These {len(seeds)} piles (seeds {_seeds(seeds)}) are the ones whose run files "
+                      f"outlived the study above, so they alone carry {_list(extra)}. Of the "
+                      f"{len(shared)} definitions both studies hold, {said} piles of the study above"
+                      + ("" if not differ else ": " + "; ".join(f"{c} under {k}" for k, c in differ))
+                      + ".", ""]
+    return lines
+
+
+def load_file(path) -> dict | None:
+    p = Path(path)
+    return json.loads(p.read_text()) if p.is_file() else None
+
+
+def _seeds(seeds: list[int]) -> str:
+    s = sorted(int(x) for x in seeds)
+    if s and s == list(range(s[0], s[-1] + 1)) and len(s) > 2:
+        return f"{s[0]}-{s[-1]}"
+    return ", ".join(str(x) for x in s)
 
 
 def _list(items: list[str]) -> str:

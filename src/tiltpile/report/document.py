@@ -248,7 +248,8 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
                   render_scales(figures_dir) + render_by_scale(figures_dir, claims)
                   + render_preparation(figures_dir)
                   + _definitions.render(studies.get("definitions"), claims)
-                  + _definitions.render_large(fast, claims) + engines + rate
+                  + _definitions.render_large(fast, claims)
+                  + _definitions.render_every(fast, claims) + engines + rate
                   + _friction.render(_friction.load(scale_dirs(figures_dir)["default"])), studies)
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
@@ -264,7 +265,8 @@ def inputs(figures_dir) -> list[Path]:
     default scale's studies (:func:`load_studies`), the figures of both engines' scales and
     their pile-against-pile study and the 4000-grain pair's study with its two sides' figures
     (:mod:`.engines`), the paper-fast study and its two sides' figures
-    (:mod:`.history_rate`), the definitions study at 4000 grains (:func:`.definitions.render_large`)
+    (:mod:`.history_rate`), the definitions study at 4000 grains (:func:`.definitions.render_large`,
+    :func:`.definitions.render_every`)
     and the friction study (:mod:`.friction`). The Makefile's report target lists the same
     files (tests/workflow/test_build_graph.py checks it)."""
     d = Path(figures_dir)
@@ -283,7 +285,7 @@ def inputs(figures_dir) -> list[Path]:
     fast = preset_dir(d, _rate.PAIR[1])
     found += [fast / _rate.STUDY] + [p for s in _rate.side_dirs(fast).values()
                                      for p in sorted(s.glob("fig*.json"))]
-    found += [fast / _definitions.FILE]
+    found += [fast / _definitions.FILE, fast / _definitions.EVERY_FILE]
     out = []
     for p in found:
         if p.exists() and p not in out:
