@@ -300,6 +300,8 @@ REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparati
                   $(REPORT_ROOT)/study-friction/study.json \
                   $(REPORT_ROOT)/paper-fast/same-piles/same_piles.json \
                   $(REPORT_ROOT)/paper-fast/same-piles/*/fig*.json \
+                  $(REPORT_ROOT)/paper-5x/same-piles/same_piles.json \
+                  $(REPORT_ROOT)/paper-5x/same-piles/*/fig*.json \
                   $(REPORT_ROOT)/paper-fast/definitions.json \
                   $(REPORT_ROOT)/paper-fast/definitions-all.json)
 $(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli/report.py src/tiltpile/__init__.py \

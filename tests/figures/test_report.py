@@ -765,6 +765,26 @@ def test_the_history_rate_section_decides_against_what_chance_moves(tmp_path):
     assert hr.decision(dict(study, n_moved=30), 0) == "fails"
     assert hr.decision(dict(study, n_moved=24), 0) == "passes"
     assert hr.decision(dict(study, null=None), 0) == "open"
+    assert "## The history at 5x" not in report.write_report(root, tmp_path / "R.md").read_text()
+
+    # paper-5x (issue 53's next step): its own section beside paper-fast's, at its own rate,
+    # against its own 8 seeds, with its own side's figures and cost
+    five = root / "paper-5x" / "same-piles"
+    five.mkdir(parents=True)
+    (five / "same_piles.json").write_text(json.dumps(dict(study, label="paper-5x", seeds=[0, 1, 2, 3, 4, 5, 6, 7],
+                                                          n_moved=3)))
+    _write(five / "paper", [paper_side])
+    _write(five / "paper-5x", [dict(fast_side, preset="paper-5x", cost={"sweeps_per_run": 60.1e6})])
+    assert five / "paper-5x" / "fig2_avalanche_criterion.json" in report.inputs(root)
+    text = report.write_report(root, tmp_path / "R.md").read_text()
+    assert "## The history at 10x the ramp's rate: paper-fast against paper" in text
+    five_sec = text.split("## The history at 5x the ramp's rate: paper-5x against paper")[1].split("\n## ")[0]
+    assert "tilted at 0.005 deg per step instead of the ramp's 0.001 (preset `paper-5x`)" in five_sec
+    assert "8 of the 8 seeds the decision waits for have run." in five_sec
+    assert "Moved (paper-5x minus paper, in combined standard errors)" in five_sec
+    assert "**Decision: paper-5x passes: it stands in for paper in new paper-scale studies**" in five_sec
+    assert "paper-5x 60.1 M sweeps per run" in five_sec
+    assert hr.speedup(("paper", "paper-5x")) == 5.0 and hr.target(("paper", "paper-5x")) == 8
 
 
 def test_the_definitions_section_at_4000_grains_says_when_it_is_preliminary(tmp_path):

@@ -240,10 +240,14 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
                               _engines.render_paper(_engines.load(big), {
                                   s: judge_all(f, claims) for s, f in big_sides.items() if f},
                                   claims))
+    rate = []
+    for checked in _rate.PAIRS:
+        faster = preset_dir(figures_dir, checked[1])
+        sides = {s: load_figures(d) for s, d in _rate.side_dirs(faster, checked).items()}
+        rate += _rate.render(_rate.load(faster), {s: judge_all(f, claims) for s, f in sides.items() if f},
+                             claims, {s: f.get("fig2_avalanche_criterion") for s, f in sides.items()},
+                             checked)
     fast = preset_dir(figures_dir, _rate.PAIR[1])
-    sides = {s: load_figures(d) for s, d in _rate.side_dirs(fast).items()}
-    rate = _rate.render(_rate.load(fast), {s: judge_all(f, claims) for s, f in sides.items() if f},
-                        claims, {s: f.get("fig2_avalanche_criterion") for s, f in sides.items()})
     text = render(figs, claims,
                   render_scales(figures_dir) + render_by_scale(figures_dir, claims)
                   + render_preparation(figures_dir)
@@ -265,7 +269,7 @@ def inputs(figures_dir) -> list[Path]:
     default scale's studies (:func:`load_studies`), the figures of both engines' scales and
     their pile-against-pile study and the 4000-grain pair's study with its two sides' figures
     (:mod:`.engines`), the paper-fast study and its two sides' figures
-    (:mod:`.history_rate`), the definitions study at 4000 grains (:func:`.definitions.render_large`,
+    (:mod:`.history_rate`, each pair), the definitions study at 4000 grains (:func:`.definitions.render_large`,
     :func:`.definitions.render_every`)
     and the friction study (:mod:`.friction`). The Makefile's report target lists the same
     files (tests/workflow/test_build_graph.py checks it)."""
@@ -282,9 +286,11 @@ def inputs(figures_dir) -> list[Path]:
     found += [big / _engines.STUDY] + [p for s in _engines.side_dirs(big).values()
                                        for p in sorted(s.glob("fig*.json"))]
     found += [root / _friction.STUDY]
+    for pair in _rate.PAIRS:
+        faster = preset_dir(d, pair[1])
+        found += [faster / _rate.STUDY] + [p for s in _rate.side_dirs(faster, pair).values()
+                                           for p in sorted(s.glob("fig*.json"))]
     fast = preset_dir(d, _rate.PAIR[1])
-    found += [fast / _rate.STUDY] + [p for s in _rate.side_dirs(fast).values()
-                                     for p in sorted(s.glob("fig*.json"))]
     found += [fast / _definitions.FILE, fast / _definitions.EVERY_FILE]
     out = []
     for p in found:

@@ -1,9 +1,10 @@
-"""The report's section "The history at 10x the ramp's rate": the ``paper-fast`` piles (the paper
-preset with its history's legs at 0.01 deg per step) against the committed ``paper`` runs of the
-same seeds, pile against pile and every figure number ensemble against ensemble (``tiltpile
-same-piles figures/paper/records figures/paper-fast/records --null K``, written to
-``figures/paper-fast/same-piles/``), the paper's claims judged on both sides' figure documents,
-the decision and the cost.
+"""The report's sections "The history at Nx the ramp's rate", one per pair of ``PAIRS``: the
+piles of a preset whose history's legs tilt faster than the ramp (``paper-fast``: 0.01 deg per
+step, 10x; ``paper-5x``: 0.005, 5x) against the committed ``paper`` runs of the same seeds, pile
+against pile and every figure number ensemble against ensemble (``tiltpile same-piles
+figures/paper/records figures/paper-fast/records --null K``, written to
+``figures/paper-fast/same-piles/``; likewise for paper-5x), the paper's claims judged on both
+sides' figure documents, the decision and the cost. A pair without its study has no section.
 
 The decision rule. The issue that asked for paper-fast set it as: paper-fast passes if no figure
 number moves by more than 2 of its standard errors and the verdicts of the paper's claims are the
@@ -27,12 +28,23 @@ from .engines import STUDY as _engines_study, pile_table, side_dirs as _side_dir
 from .judging import MISSING, Claim
 from .rigidity import BEYOND
 
-#: (the reference scale, the scale with the faster history)
-PAIR = ("paper", "paper-fast")
+#: (the reference scale, a scale with a faster history), each checked the same way
+PAIRS = (("paper", "paper-fast"), ("paper", "paper-5x"))
+#: the first pair (the 10x history)
+PAIR = PAIRS[0]
 #: the study, below the faster scale's figures directory; each side's figure documents beside it
 STUDY = _engines_study
-#: the seeds the decision waits for (the preset's ensemble)
-TARGET = cfgmod.preset_info(PAIR[1]).runs
+
+
+def target(pair=PAIR) -> int:
+    """The seeds the decision of ``pair`` waits for (its faster preset's ensemble)."""
+    return cfgmod.preset_info(pair[1]).runs
+
+
+def speedup(pair=PAIR) -> float:
+    """How many times faster than the ramp the history of ``pair``'s faster preset tilts."""
+    proto = cfgmod.load(pair[1]).protocol
+    return proto.pretilt_per_step_deg / proto.tilt_per_step_deg
 
 
 def load(figures_dir) -> dict | None:
@@ -41,19 +53,19 @@ def load(figures_dir) -> dict | None:
     return json.loads(p.read_text()) if p.is_file() else None
 
 
-def side_dirs(figures_dir) -> dict[str, Path]:
+def side_dirs(figures_dir, pair=PAIR) -> dict[str, Path]:
     """{label: the directory of that side's figure documents} of the study."""
-    return _side_dirs(figures_dir, PAIR)
+    return _side_dirs(figures_dir, pair)
 
 
-def differing(judged: dict[str, list], claims: list[Claim]) -> list[str]:
+def differing(judged: dict[str, list], claims: list[Claim], pair=PAIR) -> list[str]:
     """The paper's claims whose verdict is not the same on both sides (claim (ref; other))."""
-    ref, other = (judged[s] for s in PAIR)
+    ref, other = (judged[s] for s in pair)
     out = []
     for c, a, b in zip(claims, ref, other):
         if c.paper == BEYOND or MISSING in (a[2], b[2]) or a[2] == b[2]:
             continue
-        out.append(f"{c.text} ({PAIR[0]} {a[1]}, {a[2]}; {PAIR[1]} {b[1]}, {b[2]})")
+        out.append(f"{c.text} ({pair[0]} {a[1]}, {a[2]}; {pair[1]} {b[1]}, {b[2]})")
     return out
 
 
@@ -65,9 +77,9 @@ def decision(study: dict, n_differ: int) -> str:
     return "passes" if study["n_moved"] <= null["p95"] and n_differ == 0 else "fails"
 
 
-def _cost(docs: dict[str, dict]) -> str:
+def _cost(docs: dict[str, dict], pair=PAIR) -> str:
     parts = []
-    for label in PAIR:
+    for label in pair:
         cost = (docs.get(label) or {}).get("cost") or {}
         sw, sec = cost.get("sweeps_per_run"), cost.get("seconds_per_run")
         if sw is None:
@@ -79,17 +91,19 @@ def _cost(docs: dict[str, dict]) -> str:
 
 
 def render(study: dict | None, judged: dict[str, list], claims: list[Claim],
-           fig2_docs: dict[str, dict] | None = None) -> list[str]:
-    """Markdown lines of the section (none without the study)."""
+           fig2_docs: dict[str, dict] | None = None, pair=PAIR) -> list[str]:
+    """Markdown lines of the section of ``pair`` (none without the study)."""
     if study is None:
         return []
-    n = len(study["seeds"])
-    lines = ["", "## The history at 10x the ramp's rate: paper-fast against paper", "",
-             f"The paper's piles with Deboeuf's history tilted at 0.01 deg per step instead of the "
-             f"ramp's 0.001 (preset `{PAIR[1]}`), against the committed `{PAIR[0]}` runs of the "
-             f"same seeds, which deposit the same piles (`tiltpile same-piles`). {n} of the "
-             f"{TARGET} seeds the decision waits for "
-             + ("have run." if n >= TARGET else "have run so far: **preliminary**.") , "",
+    ref, fast = pair
+    n, want, x = len(study["seeds"]), target(pair), speedup(pair)
+    proto = cfgmod.load(fast).protocol
+    lines = ["", f"## The history at {x:g}x the ramp's rate: {fast} against {ref}", "",
+             f"The paper's piles with Deboeuf's history tilted at {proto.pretilt_per_step_deg:g} deg "
+             f"per step instead of the ramp's {proto.tilt_per_step_deg:g} (preset `{fast}`), against "
+             f"the committed `{ref}` runs of the same seeds, which deposit the same piles (`tiltpile "
+             f"same-piles`). {n} of the {want} seeds the decision waits for "
+             + ("have run." if n >= want else "have run so far: **preliminary**.") , "",
              "Pile against pile: the mean of each over the seeds, and the mean paired difference "
              "(the packing at frame 0 is not in the paper's records).", ""]
     lines += pile_table(study)
@@ -111,9 +125,9 @@ def render(study: dict | None, judged: dict[str, list], claims: list[Claim],
         return f"{name} ({s:+.1f})" if s is not None and math.isfinite(s) else name
     names = ", ".join(_moved(m) for m in study.get("moved", []))
     if names:
-        lines += ["", f"Moved (paper-fast minus paper, in combined standard errors): {names}."]
-    if all(s in judged for s in PAIR):
-        diff = differing(judged, claims)
+        lines += ["", f"Moved ({fast} minus {ref}, in combined standard errors): {names}."]
+    if all(s in judged for s in pair):
+        diff = differing(judged, claims, pair)
         lines += ["", "The paper's claims on both sides' figures: "
                   + ("the same verdict for every claim." if not diff else
                      "different verdicts for " + "; ".join(diff) + ".")]
@@ -121,16 +135,16 @@ def render(study: dict | None, judged: dict[str, list], claims: list[Claim],
         rule = ("the count of moved numbers within chance's 95th percentile and every verdict "
                 "the same; the literal rule, no number moved, fails by chance alone with "
                 f"{study['n_with_error']} numbers")
-        if n < TARGET:
-            lines += ["", f"**Decision: not yet** ({n} of {TARGET} seeds). So far paper-fast "
+        if n < want:
+            lines += ["", f"**Decision: not yet** ({n} of {want} seeds). So far {fast} "
                       f"{'would pass' if word == 'passes' else 'would fail' if word == 'fails' else 'is undecided'}"
                       f" by the rule: {rule}."]
         else:
-            verdict = {"passes": "paper-fast passes: it stands in for paper in new paper-scale "
-                                 "studies", "fails": "paper-fast fails: its history's rate moves "
+            verdict = {"passes": f"{fast} passes: it stands in for {ref} in new paper-scale "
+                                 "studies", "fails": f"{fast} fails: its history's rate moves "
                                  "the figures", "open": "open: measure what chance moves"}[word]
             lines += ["", f"**Decision: {verdict}** (the rule: {rule})."]
-    cost = _cost(fig2_docs or {})
+    cost = _cost(fig2_docs or {}, pair)
     if cost:
         lines += ["", f"Cost (each ensemble's own runs, as their records time them): {cost}."]
     return lines
