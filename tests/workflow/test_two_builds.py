@@ -138,6 +138,19 @@ def test_a_lock_file_is_never_seen_held_without_its_holder(tmp_path, monkeypatch
     assert seen and all(note.strip() for note in seen), seen
 
 
+def test_without_o_tmpfile_the_lock_is_written_under_a_hidden_name_and_leaves_nothing_else(
+        tmp_path, monkeypatch):
+    monkeypatch.delattr(os, "O_TMPFILE")
+    lock = tmp_path / ".build.lock"
+    fd = lock_file(lock, "make figures (pid 3 on here)")
+    assert [p.name for p in tmp_path.iterdir()] == [".build.lock"]
+    assert lock.read_text() == "make figures (pid 3 on here)\n"
+    with pytest.raises(LockHeld, match=r"held by make figures \(pid 3 on here\)"):
+        lock_file(lock, "second")
+    unlock_file(lock, fd)
+    assert list(tmp_path.iterdir()) == []
+
+
 def test_a_lock_taken_and_released_in_a_loop_always_names_its_holder_to_another_process(tmp_path):
     lock = tmp_path / ".build.lock"
     taker = subprocess.Popen(
