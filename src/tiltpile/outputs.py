@@ -69,48 +69,50 @@ def _noted(text: str, over: int = 0) -> bytes:
 
 
 def _held_new(lock: Path, text: str) -> int | None:
-    """Create ``lock`` already held and already holding its note: a file written and locked
-    unnamed (``O_TMPFILE``, or a hidden name beside it where that cannot be linked) and then
-    linked to ``lock``, so that no other process ever sees ``lock`` without its holder. The
-    descriptor, or None if ``lock`` exists."""
-    for unnamed in (True, False):
-        tmp = None if unnamed else lock.with_name(f".{lock.name}.{os.getpid()}.{threading.get_ident()}")
-        try:
-            fd = (os.open(lock.parent, os.O_TMPFILE | os.O_RDWR, 0o644) if unnamed
-                  else os.open(tmp, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o644))
-        except (AttributeError, OSError):
-            if unnamed:        # no O_TMPFILE (not Linux, or this file system)
-                continue
-            raise
-        try:
-            os.pwrite(fd, _noted(text), 0)
-            import fcntl
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)    # a new file: nobody else has it
-            if unnamed:        # linkat(2) of /proc/self/fd/N, as open(2) documents for O_TMPFILE
-                fds = os.open("/proc/self/fd", os.O_RDONLY)
-                try:           # (a src_dir_fd makes Python call linkat with AT_SYMLINK_FOLLOW)
-                    os.link(str(fd), lock, src_dir_fd=fds, follow_symlinks=True)
-                finally:
-                    os.close(fds)
-            else:
-                os.link(tmp, lock)
-            return fd
-        except FileExistsError:
-            os.close(fd)
-            return None
-        except OSError:
-            os.close(fd)
-            if unnamed:        # no /proc, or a file system that cannot link it: by name
-                continue
-            raise
-        except BaseException:
-            os.close(fd)
-            raise
-        finally:
-            if tmp is not None:
-                with contextlib.suppress(OSError):
-                    tmp.unlink()
-    raise AssertionError("unreachable")
+    """Create ``lock`` already held and already holding its note (:func:`_link_held`), so that
+    no other process ever sees ``lock`` without its holder: written unnamed (``O_TMPFILE``), or
+    under a hidden name beside it where that cannot be made or linked. The descriptor, or None
+    if ``lock`` exists."""
+    try:
+        return _link_held(lock, text, unnamed=True)
+    except FileExistsError:
+        return None
+    except (AttributeError, OSError):
+        pass   # no O_TMPFILE, no /proc, or a file system that cannot link it: by name
+    try:
+        return _link_held(lock, text, unnamed=False)
+    except FileExistsError:
+        return None
+
+
+def _link_held(lock: Path, text: str, unnamed: bool) -> int:
+    """A new file holding ``text``, flocked, then linked to ``lock``: its descriptor.
+    FileExistsError if ``lock`` exists; the new file is closed and nothing is left behind on any
+    error."""
+    import fcntl
+
+    tmp = None if unnamed else lock.with_name(f".{lock.name}.{os.getpid()}.{threading.get_ident()}")
+    fd = (os.open(lock.parent, os.O_TMPFILE | os.O_RDWR, 0o644) if unnamed
+          else os.open(tmp, os.O_RDWR | os.O_CREAT | os.O_TRUNC, 0o644))
+    try:
+        os.pwrite(fd, _noted(text), 0)
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)    # a new file: nobody else has it
+        if unnamed:   # linkat(2) of /proc/self/fd/N, as open(2) documents for O_TMPFILE
+            fds = os.open("/proc/self/fd", os.O_RDONLY)
+            try:      # (a src_dir_fd makes Python call linkat with AT_SYMLINK_FOLLOW)
+                os.link(str(fd), lock, src_dir_fd=fds, follow_symlinks=True)
+            finally:
+                os.close(fds)
+        else:
+            os.link(tmp, lock)
+    except BaseException:
+        os.close(fd)
+        raise
+    finally:
+        if tmp is not None:
+            with contextlib.suppress(OSError):
+                tmp.unlink()
+    return fd
 
 
 def lock_file(lock: str | Path, holder: str | None = None, *, wait: bool = False,
