@@ -267,3 +267,9 @@ def test_every_definition_on_fewer_piles_says_what_it_adds_and_where_its_verdict
     every["definitions"][1] = d("list", a)          # the same verdicts as the larger study
     (fast / rd.EVERY_FILE).write_text(json.dumps(every))
     assert "every verdict is the same on these piles as on the 16 piles" in rd.render_every(fast, CLAIMS)[3]
+
+
+def test_writing_the_records_of_an_unknown_definition_is_refused_before_anything_is_written(tmp_path):
+    with pytest.raises(ValueError, match="no definition \\['nope'\\]"):
+        next(fd.write_definition_records(tmp_path / "runs", tmp_path / "defs", 0.002, only=("list", "nope")))
+    assert not (tmp_path / "defs").exists()

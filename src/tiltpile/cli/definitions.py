@@ -64,8 +64,7 @@ def run(args) -> int:
     only = None
     if args.only is not None:
         only = [k.strip() for k in args.only.split(",") if k.strip()]
-        keys = [d["key"] for d in df.definitions(1.0)]
-        unknown = [k for k in only if k not in keys]
+        unknown, keys = df.unknown_keys(only)
         if unknown or not only:
             raise ConfigError(f"--only {args.only}: no definition {', '.join(unknown) or '(none given)'}; "
                               f"the study has {', '.join(keys)}")

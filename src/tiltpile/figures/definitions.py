@@ -131,6 +131,13 @@ def definitions(g: float, notebooks_dir="notebooks") -> list[dict]:
     return out
 
 
+def unknown_keys(only, notebooks_dir="notebooks") -> tuple[list[str], list[str]]:
+    """(the keys of ``only`` that name no definition, sorted; every definition's key). The keys
+    do not depend on g."""
+    keys = [d["key"] for d in definitions(1.0, notebooks_dir)]
+    return sorted(set(only) - set(keys)), keys
+
+
 #: Fig. 3's peak rules other than its default, and what each takes as a peak of S_max
 PEAK_RULES = (("local", "failure after every quiet local maximum of the largest cluster"),
               ("decile", "failure after the quiet frames of the largest clusters' top decile"),
@@ -160,9 +167,8 @@ def study(data_dir, preset: str | None = None, g: float | None = None, target: f
                                 "each definition (records=)")
     if records is not None and g is None:
         raise ValueError("from records, give g (the fit needs the run files)")
-    if only is not None:  # the keys do not depend on g
-        keys = [d["key"] for d in definitions(1.0, notebooks_dir)]
-        unknown = sorted(set(only) - set(keys))
+    if only is not None:
+        unknown, keys = unknown_keys(only, notebooks_dir)
         if unknown:
             raise ValueError(f"no definition {unknown}; the study has {', '.join(keys)}")
     say = (lambda line: print(line, flush=True)) if progress else (lambda line: None)
@@ -228,6 +234,9 @@ def write_definition_records(data_dir, root, g: float, only=None, workers: int |
 
     if not g > 0:
         raise ValueError(f"g must be > 0 (d), got {g}")
+    unknown, keys = unknown_keys(only or ())
+    if unknown:
+        raise ValueError(f"no definition {unknown}; the study has {', '.join(keys)}")
     for d in definitions(g):
         if not d["params"] or (only is not None and d["key"] not in only):
             continue

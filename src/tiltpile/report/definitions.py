@@ -72,8 +72,9 @@ def counts(row: dict) -> dict[str, int]:
     return out
 
 
-def render(doc: dict | None, claims: list[Claim], scale: str = "") -> list[str]:
-    """Markdown lines of the section for one scale's study ([] without one)."""
+def render(doc: dict | None, claims: list[Claim], scale: str = "", preface: str = "") -> list[str]:
+    """Markdown lines of the section for one scale's study ([] without one); ``preface``: a
+    paragraph before the study's own."""
     if not doc:
         return []
     v = verdicts(doc, claims)
@@ -85,8 +86,9 @@ def render(doc: dict | None, claims: list[Claim], scale: str = "") -> list[str]:
            f"({fit.get('n_quiet_frames')} frames)")
     z_list = _z_of(doc, "list")
     where = scale or f"{doc.get('n_runs')} runs of {doc.get('n_grains')} grains"
-    lines = ["", f"## What the disagreements depend on ({where})", "",
-             f"From `{doc.get('command') or 'tiltpile definitions'}`: {doc.get('n_runs')} runs of "
+    lines = ["", f"## What the disagreements depend on ({where})", ""]
+    lines += [preface, ""] if preface else []
+    lines += [f"From `{doc.get('command') or 'tiltpile definitions'}`: {doc.get('n_runs')} runs of "
              f"{doc.get('n_grains')} grains ({(doc.get('history') or {}).get('label', '')}), every "
              "claim judged by its own rule on the figure numbers each definition gives. The one "
              f"number fitted is the gap of the contact list, g = {show(g, '.3g')} d ({how}); the "
@@ -157,27 +159,25 @@ def render_every(fast_dir, claims: list[Claim]) -> list[str]:
     doc = load_file(Path(fast_dir) / EVERY_FILE)
     if not doc:
         return []
-    seeds = doc.get("seeds") or []
     where = (f"{doc.get('n_runs')} cycled piles of {doc.get('n_grains')} grains, `paper-fast`, "
              "every definition")
-    lines = render(doc, claims, scale=where)
     big = load(fast_dir)
-    if big:
-        v, w = verdicts(doc, claims), verdicts(big, claims)
-        labels = {d["key"]: d["label"] for d in doc["definitions"]}
-        shared = [k for k in v if k in w]
-        differ = [(labels[k], c.text) for k in shared for c in claims if v[k][c.key][1] != w[k][c.key][1]]
-        extra = [labels[k] for k in v if k not in w]
-        said = ("every verdict is the same on these piles as on the "
-                f"{big.get('n_runs')}" if not differ else
-                f"{len(differ)} of {len(shared) * len(claims)} verdicts differ from those on the "
-                f"{big.get('n_runs')}")
-        lines[3:3] = [f"These {len(seeds)} piles (seeds {_seeds(seeds)}) are the ones whose run files "
-                      f"outlived the study above, so they alone carry {_list(extra)}. Of the "
-                      f"{len(shared)} definitions both studies hold, {said} piles of the study above"
-                      + ("" if not differ else ": " + "; ".join(f"{c} under {k}" for k, c in differ))
-                      + ".", ""]
-    return lines
+    if not big:
+        return render(doc, claims, scale=where)
+    v, w = verdicts(doc, claims), verdicts(big, claims)
+    labels = {d["key"]: d["label"] for d in doc["definitions"]}
+    shared = [k for k in v if k in w]
+    differ = [f"{c.text} under {labels[k]}" for k in shared for c in claims
+              if v[k][c.key][1] != w[k][c.key][1]]
+    n_big = big.get("n_runs")
+    said = (f"every verdict is the same on these piles as on the {n_big}" if not differ else
+            f"{len(differ)} of {len(shared) * len(claims)} verdicts differ from those on the {n_big}")
+    seeds = doc.get("seeds") or []
+    preface = (f"These {len(seeds)} piles (seeds {_seeds(seeds)}) are the ones whose run files "
+               f"outlived the study above, so they alone carry {_list([labels[k] for k in v if k not in w])}. "
+               f"Of the {len(shared)} definitions both studies hold, {said} piles of the study above"
+               + (": " + "; ".join(differ) if differ else "") + ".")
+    return render(doc, claims, scale=where, preface=preface)
 
 
 def load_file(path) -> dict | None:

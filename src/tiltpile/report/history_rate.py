@@ -18,13 +18,12 @@ and every verdict must be the same. The literal rule's count is reported beside 
 
 from __future__ import annotations
 
-import json
 import math
 from pathlib import Path
 
 from tiltpile import config as cfgmod
 
-from .engines import STUDY as _engines_study, pile_table, side_dirs as _side_dirs
+from .engines import STUDY as _engines_study, load as _load_study, pile_table, side_dirs as _side_dirs
 from .judging import MISSING, Claim
 from .rigidity import BEYOND
 
@@ -43,14 +42,16 @@ def target(pair=PAIR) -> int:
 
 def speedup(pair=PAIR) -> float:
     """How many times faster than the ramp the history of ``pair``'s faster preset tilts."""
-    proto = cfgmod.load(pair[1]).protocol
+    return _speedup(cfgmod.load(pair[1]).protocol)
+
+
+def _speedup(proto) -> float:
     return proto.pretilt_per_step_deg / proto.tilt_per_step_deg
 
 
-def load(figures_dir) -> dict | None:
-    """The study of the faster scale's figures directory (None without one)."""
-    p = Path(figures_dir) / STUDY
-    return json.loads(p.read_text()) if p.is_file() else None
+#: the study of the faster scale's figures directory (None without one): the same file as the
+#: engines' pile-against-pile study
+load = _load_study
 
 
 def side_dirs(figures_dir, pair=PAIR) -> dict[str, Path]:
@@ -96,8 +97,8 @@ def render(study: dict | None, judged: dict[str, list], claims: list[Claim],
     if study is None:
         return []
     ref, fast = pair
-    n, want, x = len(study["seeds"]), target(pair), speedup(pair)
     proto = cfgmod.load(fast).protocol
+    n, want, x = len(study["seeds"]), target(pair), _speedup(proto)
     lines = ["", f"## The history at {x:g}x the ramp's rate: {fast} against {ref}", "",
              f"The paper's piles with Deboeuf's history tilted at {proto.pretilt_per_step_deg:g} deg "
              f"per step instead of the ramp's {proto.tilt_per_step_deg:g} (preset `{fast}`), against "
