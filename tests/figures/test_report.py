@@ -600,15 +600,21 @@ def test_the_engines_section_at_4000_grains_judges_each_sides_figures_of_the_pai
     that two piles give no figure number an error, and the claims on the figure documents the
     study wrote of each side, sorted like the default pair's."""
     from tiltpile.report import engines
-    monkeypatch.setattr(engines, "PAPER_TARGET", 3)
+    monkeypatch.setattr(engines, "target", lambda pair=engines.PAPER_PAIR: 3)
     root = tmp_path / "figures"
     _write(root, [dict(_fig2(), preset="default", n_grains=1000)])
     _write(root / "default-dem", [dict(_fig2(), preset="default-dem", n_grains=1000)])
 
     def sub():
         text = report.write_report(root, tmp_path / "R.md").read_text()
-        return text.split("### At 4000 grains")[1].split("\n## ")[0]
+        return text.split("### At 4000 grains\n")[1].split("\n#")[0]
     assert "is not yet computed" in sub() and "make engines ENGINES=paper-fast" in sub()
+    # the paper's own history (paper-dem against the committed paper records): its own subsection
+    text = report.write_report(root, tmp_path / "R.md").read_text()
+    own = text.split("### At 4000 grains, with paper's history\n")[1].split("\n#")[0]
+    assert ("(preset `paper-dem`: 3 of `paper`'s piles, cycled twice to +-16 deg at the ramp's "
+            "rate, in the DEM, several hours each) is not yet computed") in own
+    assert "make engines ENGINES=paper`" in own
     big = root / "paper-fast-dem" / "same-piles"
     study = dict(_same_piles_study((0, 1)), ref="paper-fast", label="paper-fast-dem",
                  n_with_error=0, n_moved=0)

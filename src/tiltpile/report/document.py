@@ -233,13 +233,15 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
     claims = CLAIMS if claims is None else claims
     studies = load_studies(figures_dir)
     pair = {s: load_figures(preset_dir(figures_dir, s)) for s in _engines.PAIR}
-    big = preset_dir(figures_dir, _engines.PAPER_PAIR[1])
-    big_sides = {s: load_figures(d) for s, d in _engines.side_dirs(big).items()}
+    big = []
+    for paper_pair in _engines.PAPER_PAIRS:
+        d = preset_dir(figures_dir, paper_pair[1])
+        sides = {s: load_figures(p) for s, p in _engines.side_dirs(d, paper_pair).items()}
+        big += _engines.render_paper(_engines.load(d), {s: judge_all(f, claims)
+                                                        for s, f in sides.items() if f},
+                                     claims, paper_pair)
     engines = _engines.render(_engines.load(preset_dir(figures_dir, _engines.PAIR[1])),
-                              {s: judge_all(f, claims) for s, f in pair.items() if f}, claims,
-                              _engines.render_paper(_engines.load(big), {
-                                  s: judge_all(f, claims) for s, f in big_sides.items() if f},
-                                  claims))
+                              {s: judge_all(f, claims) for s, f in pair.items() if f}, claims, big)
     rate = []
     for checked in _rate.PAIRS:
         faster = preset_dir(figures_dir, checked[1])
@@ -267,7 +269,7 @@ def inputs(figures_dir) -> list[Path]:
     Fig. 2's JSON of every scale (:func:`render_scales`), every ``fig*.json`` of the scales
     :func:`render_by_scale` compares, its ``preparation.json`` (:func:`render_preparation`), the
     default scale's studies (:func:`load_studies`), the figures of both engines' scales and
-    their pile-against-pile study and the 4000-grain pair's study with its two sides' figures
+    their pile-against-pile study and each 4000-grain pair's study with its two sides' figures
     (:mod:`.engines`), the paper-fast study and its two sides' figures
     (:mod:`.history_rate`, each pair), the definitions study at 4000 grains (:func:`.definitions.render_large`,
     :func:`.definitions.render_every`)
@@ -282,9 +284,10 @@ def inputs(figures_dir) -> list[Path]:
     found += [d / "preparation.json"] + [root / f for f in STUDIES.values()]
     found += [p for s in _engines.PAIR for p in sorted(preset_dir(d, s).glob("fig*.json"))]
     found += [preset_dir(d, _engines.PAIR[1]) / _engines.STUDY]
-    big = preset_dir(d, _engines.PAPER_PAIR[1])
-    found += [big / _engines.STUDY] + [p for s in _engines.side_dirs(big).values()
-                                       for p in sorted(s.glob("fig*.json"))]
+    for paper_pair in _engines.PAPER_PAIRS:
+        big = preset_dir(d, paper_pair[1])
+        found += [big / _engines.STUDY] + [p for s in _engines.side_dirs(big, paper_pair).values()
+                                           for p in sorted(s.glob("fig*.json"))]
     found += [root / _friction.STUDY]
     for pair in _rate.PAIRS:
         faster = preset_dir(d, pair[1])

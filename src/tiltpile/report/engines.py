@@ -2,9 +2,11 @@
 history and ramp by the second engine (the soft-sphere DEM, preset ``default-dem``), pile against
 pile (``same_piles.json`` of ``tiltpile same-piles``, ``make engines``), and the paper's claims
 judged on both: which disagreements with the paper both engines share (then not our engine's)
-and which only one has. Its subsection "At 4000 grains" does the same for paper-fast's piles
-(preset ``paper-fast-dem`` against ``paper-fast``'s records of the same seeds, ``make engines
-ENGINES=paper-fast``), the claims judged on the figure documents the study writes of each side.
+and which only one has. Its subsections at 4000 grains do the same for each pair of
+``PAPER_PAIRS``: paper-fast's piles (preset ``paper-fast-dem`` against ``paper-fast``'s records of
+the same seeds, ``make engines ENGINES=paper-fast``) and the paper's own (``paper-dem`` against
+the committed ``paper`` records, ``make engines ENGINES=paper``), the claims judged on the
+figure documents the study writes of each side.
 
 The per-claim verdicts are the report's own (:func:`tiltpile.report.document.judge_all` on each
 scale's figures), handed in by :func:`tiltpile.report.document.write_report`.
@@ -24,10 +26,10 @@ from .rigidity import BEYOND
 #: (the reference scale, the scale of the other engine): their figures directories are the
 #: report's (``scales.scale_dirs``)
 PAIR = ("default", "default-dem")
-#: the same at 4000 grains: paper-fast's piles (their history at 10x the ramp's rate) in both
-PAPER_PAIR = ("paper-fast", "paper-fast-dem")
-#: the piles the 4000-grain pair is planned for (the DEM preset's ensemble)
-PAPER_TARGET = cfgmod.preset_info(PAPER_PAIR[1]).runs
+#: the same at 4000 grains, one subsection each: paper-fast's piles (their history at 10x the
+#: ramp's rate) and the paper's own (the history at the ramp's rate, the committed records)
+PAPER_PAIRS = (("paper-fast", "paper-fast-dem"), ("paper", "paper-dem"))
+PAPER_PAIR = PAPER_PAIRS[0]
 #: where ``make engines`` writes the pile-against-pile study, below the other engine's figures
 STUDY = Path("same-piles") / "same_piles.json"
 # the per-seed numbers of the study (figures.same_piles.PER_SEED), as the table names them
@@ -54,6 +56,22 @@ def side_dirs(figures_dir, pair=PAPER_PAIR) -> dict[str, Path]:
     ``figures_dir`` (``tiltpile same-piles`` writes them there); also history_rate's."""
     d = (Path(figures_dir) / STUDY).parent
     return {label: d / label for label in pair}
+
+
+def target(pair=PAPER_PAIR) -> int:
+    """The piles a 4000-grain pair is planned for: the DEM preset's ensemble."""
+    return cfgmod.preset_info(pair[1]).runs
+
+
+def _history(ref: str) -> str:
+    """How the reference preset's piles were prepared, from its configuration."""
+    p = cfgmod.load(ref).protocol
+    a = max((abs(x) for x in p.pretilt_deg), default=0.0)
+    if tuple(p.pretilt_deg) != cfgmod.deboeuf_history(2, a):
+        return f"history {cfgmod.history_label(p.pretilt_deg)}"
+    rate = (p.pretilt_per_step_deg or p.tilt_per_step_deg) / p.tilt_per_step_deg
+    at = "the ramp's rate" if rate == 1 else f"{rate:g}x the ramp's rate"
+    return f"cycled twice to +-{a:g} deg at {at}"
 
 
 def _mean(values) -> float:
@@ -103,22 +121,26 @@ def _kinds(k: dict[str, list[str]]) -> list[str]:
             "- **In the DEM only**: " + ("; ".join(k["dem"]) if k["dem"] else "none") + "."]
 
 
-def render_paper(study: dict | None, judged: dict[str, list], claims: list[Claim]) -> list[str]:
-    """Markdown lines of the subsection "At 4000 grains": paper-fast's piles in both engines,
-    pile against pile, and the claims on each side's figure documents (``judged``: {scale:
-    judge_all's rows} of ``PAPER_PAIR``, from :func:`side_dirs`). Without the study, one line
-    saying it is not yet computed and how to make it."""
-    ref, other = PAPER_PAIR
-    lines = ["", "### At 4000 grains", ""]
+def render_paper(study: dict | None, judged: dict[str, list], claims: list[Claim],
+                 pair=PAPER_PAIR) -> list[str]:
+    """Markdown lines of the subsection "At 4000 grains" of one pair of ``PAPER_PAIRS``: the
+    reference preset's piles in both engines, pile against pile, and the claims on each side's
+    figure documents (``judged``: {scale: judge_all's rows} of ``pair``, from
+    :func:`side_dirs`). Without the study, one line saying it is not yet computed and how to
+    make it."""
+    ref, other = pair
+    n_target, history = target(pair), _history(ref)
+    title = "At 4000 grains" if pair == PAPER_PAIR else f"At 4000 grains, with {ref}'s history"
+    lines = ["", f"### {title}", ""]
     if study is None:
-        return lines + [f"The paper-scale pair (preset `{other}`: {PAPER_TARGET} of `{ref}`'s "
-                        "piles in the DEM, several hours each) is not yet computed "
-                        "(docs/dem.md; then `make engines ENGINES=paper-fast`)."]
+        return lines + [f"The paper-scale pair (preset `{other}`: {n_target} of `{ref}`'s "
+                        f"piles, {history}, in the DEM, several hours each) is not yet computed "
+                        f"(docs/dem.md; then `make engines ENGINES={ref}`)."]
     n = len(study["seeds"])
-    lines += [f"`{ref}`'s piles (4000 grains, cycled twice to +-16 deg at 10x the ramp's rate) "
+    lines += [f"`{ref}`'s piles (4000 grains, {history}) "
               f"carried through the same history and ramp by the DEM (preset `{other}`), against "
-              f"`{ref}`'s records of the same seeds: {n} of {PAPER_TARGET} piles"
-              + ("." if n >= PAPER_TARGET else " so far (**preliminary**)."), ""]
+              f"`{ref}`'s records of the same seeds: {n} of {n_target} piles"
+              + ("." if n >= n_target else " so far (**preliminary**)."), ""]
     lines += pile_table(study)
     if study["n_with_error"]:
         lines += ["", f"Every figure number ensemble against ensemble: {study['n_moved']} of "
@@ -127,10 +149,10 @@ def render_paper(study: dict | None, judged: dict[str, list], claims: list[Claim
     else:
         lines += ["", f"On {n} piles no figure number has a jackknife error (it needs 3 runs): "
                   "the two engines' figures meet through the claims' verdicts below."]
-    if all(s in judged for s in PAPER_PAIR):
+    if all(s in judged for s in pair):
         lines += ["", f"The paper's claims on each engine's {n} piles (few piles: a verdict whose "
                   "number needs many runs may turn on one pile):", ""]
-        lines += _kinds(shared(judged, claims, PAPER_PAIR))
+        lines += _kinds(shared(judged, claims, pair))
     return lines
 
 
