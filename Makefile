@@ -235,6 +235,9 @@ records: | $(STAMP)
 # (--skip-recorded; none there: nothing skipped). Finished runs are skipped and interrupted ones
 # resume from their checkpoints, so the same command starts it anew in every session, e.g.
 # `nohup make ensemble PRESET=paper DATA=/work/runs/paper WORKERS=2 > /work/runs/paper.log 2>&1 &`.
+# RERUN=1 computes the recorded seeds too (their run files again, for an analysis the records
+# cannot do; FIRST=S starts at seed S): `tiltpile verify DATA --against RECORDS` then checks that
+# each reproduces the frames its record was made from.
 ENSEMBLE_COMMIT = $(shell git rev-parse --short=12 HEAD 2>/dev/null)
 ENSEMBLE_CODE = $(DATA)-code/$(ENSEMBLE_COMMIT)
 .PHONY: ensemble
@@ -244,8 +247,8 @@ ensemble: | $(STAMP)
 	@test -d $(ENSEMBLE_CODE)/src || { rm -rf $(ENSEMBLE_CODE).tmp && mkdir -p $(ENSEMBLE_CODE).tmp && \
 	  git archive $(ENSEMBLE_COMMIT) src | tar -x -C $(ENSEMBLE_CODE).tmp && mv $(ENSEMBLE_CODE).tmp $(ENSEMBLE_CODE); }
 	NUMBA_CACHE_DIR=$(ENSEMBLE_CODE)/numba-cache PYTHONPATH=$(ENSEMBLE_CODE)/src \
-	  $(PY) -m tiltpile ensemble --preset $(PRESET) --runs $(RUNS) --out $(DATA) $(ENSEMBLE_ARGS) \
-	  $(if $(wildcard $(RECORDS)/run_*.npz),--skip-recorded $(RECORDS)) --quiet
+	  $(PY) -m tiltpile ensemble --preset $(PRESET) --runs $(RUNS) --out $(DATA) $(if $(FIRST),--first-seed $(FIRST)) $(ENSEMBLE_ARGS) \
+	  $(if $(RERUN),,$(if $(wildcard $(RECORDS)/run_*.npz),--skip-recorded $(RECORDS))) --quiet
 
 # NB, checked before anything runs: every name must be a parameter of a notebook this invocation
 # executes (those of the figure targets named, the preparation study's, or every figure's). Then

@@ -290,6 +290,13 @@ def test_make_ensemble_runs_a_copy_of_the_committed_code_and_skips_recorded_seed
     r = subprocess.run(["make", "-n", "ensemble", "PRESET=smoke", "DATA=/x/runs/smoke"], cwd=ROOT,
                        capture_output=True, text=True, timeout=120, env=MAKE_ENV)
     assert r.returncode == 0 and "--skip-recorded" not in r.stdout, r.stderr
+    # RERUN=1: the recorded seeds again (their run files, for an analysis the records cannot do)
+    r = subprocess.run(["make", "-n", "ensemble", "PRESET=paper-fast", "DATA=/x/runs/paper-fast",
+                        "RUNS=11", "FIRST=2", "RERUN=1"], cwd=ROOT, capture_output=True, text=True,
+                       timeout=120, env=MAKE_ENV)
+    out = " ".join(r.stdout.replace("\\\n", " ").split())
+    assert r.returncode == 0 and "--skip-recorded" not in out, r.stderr
+    assert "--preset paper-fast --runs 11 --out /x/runs/paper-fast --first-seed 2 --quiet" in out
 
 
 _KERNELS = r"""

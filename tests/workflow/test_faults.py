@@ -671,3 +671,37 @@ def test_a_second_ensemble_on_one_directory_is_refused(tmp_path, tiny):
     finally:
         unlock_file(d / LOCK, fd)
     assert sorted(p.name for p in d.iterdir()) == []
+
+
+def test_verify_against_records_tells_a_recomputed_run_from_another(tmp_path, tiny, ref, capsys,
+                                                                    monkeypatch):
+    """A run file computed again (its first one lost) reproduces its record's frames bit for bit:
+    `tiltpile verify DIR --against RECORDS` says so and exits 0. A run of another configuration,
+    a run without a record and frames that differ from the record's digest each exit 1, naming
+    why, one line per file."""
+    from tiltpile.figures.records import write_record_of
+
+    records = tmp_path / "records"
+    write_record_of(ref, records)
+    again = tmp_path / "again"
+    simulate(tiny, 3, again / "run_0003.h5", progress=False, resume=False)
+    assert main(["verify", str(again), "--against", str(records)]) == 0
+    assert capsys.readouterr().out.strip() == f"{again / 'run_0003.h5'}: ok, reproduces its record bit for bit"
+
+    other = tmp_path / "other"
+    simulate(config.load("smoke", overrides=TINY + ["solver.tol=1e-7"]), 3, other / "run_0003.h5",
+             progress=False, resume=False)
+    simulate(tiny, 4, other / "run_0004.h5", progress=False, resume=False)
+    assert main(["verify", str(other), "--against", str(records)]) == 1
+    out = capsys.readouterr().out.strip().splitlines()
+    assert "DIFFERS: another run than its record's" in out[0]
+    assert "DIFFERS: no record run_0004.npz in" in out[1]
+    assert out[2] == f"2 of 2 run files sound; 0 reproduce their records in {records}"
+
+    monkeypatch.setattr(store.reader.Run, "frames_digest", lambda self: "0" * 64)
+    assert main(["verify", str(again), "--against", str(records), "--json"]) == 1
+    row = json.loads(capsys.readouterr().out)
+    assert row["ok"] and not row["reproduces_record"]
+    assert "its frames differ from those its record run_0003.npz was made from" == row["record_problem"]
+    assert main(["verify", str(again), "--against", str(tmp_path / "nowhere")]) == 2
+    assert "no such records directory" in capsys.readouterr().err
