@@ -113,6 +113,12 @@ def test_the_report_cites_the_study_in_the_notes_of_disagreeing_claims(tmp_path)
     notes = text.split("## Notes")[1].split("\n## ")[0]
     n_dis = sum(1 for c, _, verdict, _, _ in judge_all(a, CLAIMS) if verdict == DISAGREES)
     assert notes.count("By definition (") == n_dis > 0
+    # the 4000-grain study (paper-fast's piles) is cited in the same sentence
+    assert "at 4000 grains" not in notes
+    (figs / "paper-fast").mkdir()
+    (figs / "paper-fast" / "definitions.json").write_text(json.dumps(dict(doc, n_runs=16, n_grains=4000)))
+    notes = write_report(figs, tmp_path / "with.md").read_text().split("## Notes")[1].split("\n## ")[0]
+    assert notes.count("; at 4000 grains (16 runs): disagrees under every definition tried (1).") == n_dis
 
 
 def test_bad_input_stops_in_one_line_with_nothing_written(tmp_path, capsys):

@@ -572,9 +572,16 @@ def test_the_engines_section_says_which_disagreements_both_engines_share(tmp_pat
     dem = dict(_fig2(theta_m_min=7.0, theta_m_max=16.0), preset="default-dem", n_grains=1000,
                engine="lammps")
     _write(root / "default-dem", [dem])
-    sec = report.write_report(root, tmp_path / "R.md").read_text().split(
-        "## Same piles, another model")[1].split("\n## ")[0]
+    text = report.write_report(root, tmp_path / "R.md").read_text()
+    sec = text.split("## Same piles, another model")[1].split("\n## ")[0]
     by = {c.key: c.text for c in report.CLAIMS}
+    # each disagreeing claim's note says what the second engine gives on the same piles
+    notes = {line.split("** (")[0][4:]: line for line in
+             text.split("## Notes")[1].split("\n## ")[0].splitlines() if line.startswith("- **")}
+    n = dem.get("n_runs")
+    assert f"disagrees at 1000 grains (default's {n} piles)." in notes[by["z_mean"]]
+    assert f"agrees at 1000 grains (default's {n} piles)." in notes[by["theta_m"]]
+    assert all(("The second engine" in line) == ("(disagrees)" in line) for line in notes.values())
     both = next(x for x in sec.splitlines() if x.startswith("- **In both engines**"))
     cd_only = next(x for x in sec.splitlines() if x.startswith("- **In Contact Dynamics only**"))
     assert by["z_mean"] in both and by["theta_m"] not in both

@@ -50,6 +50,11 @@ def source(doc: dict) -> str:
     return f"{doc.get('preset')}, {doc.get('n_runs')} runs of {doc.get('n_grains')} grains" + _history(doc)
 
 
+#: keys of the studies handed to :func:`judge_all` beside :func:`load_studies`' (by
+#: :func:`write_report`): the 4000-grain definitions study and the DEM's verdicts per pair
+LARGE_DEFINITIONS, ENGINES = "definitions-4000", "engines"
+
+
 def judge_all(figs: dict[str, dict], claims: list[Claim],
               studies: dict | None = None) -> list[tuple[Claim, str, str, str, str]]:
     """(claim, ours, verdict, note, source) of every claim on the loaded figure documents; a
@@ -66,8 +71,10 @@ def judge_all(figs: dict[str, dict], claims: list[Claim],
                                        "n_grains": doc.get("n_grains")})
         cite = CITES[c.key](studies) if studies and c.key in CITES else ""
         if studies and verdict == DISAGREES:
-            cite = " ".join(x for x in (cite, _definitions.cite(studies.get("definitions"),
-                                                                  claims, c.key)) if x)
+            cite = " ".join(x for x in (
+                cite, _definitions.cite(studies.get("definitions"), claims, c.key,
+                                        studies.get(LARGE_DEFINITIONS)),
+                _engines.cite(studies.get(ENGINES, []), c.key)) if x)
         out.append((c, ours, verdict, " ".join(x for x in (note, cite) if x), source(doc)))
     return out
 
@@ -233,15 +240,22 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
     claims = CLAIMS if claims is None else claims
     studies = load_studies(figures_dir)
     pair = {s: load_figures(preset_dir(figures_dir, s)) for s in _engines.PAIR}
+    judged = {s: judge_all(f, claims) for s, f in pair.items() if f}
+    dem = [_engines.verdicts_of(judged.get(_engines.PAIR[1]), pair[_engines.PAIR[1]], _engines.PAIR[0])]
     big = []
     for paper_pair in _engines.PAPER_PAIRS:
         d = preset_dir(figures_dir, paper_pair[1])
         sides = {s: load_figures(p) for s, p in _engines.side_dirs(d, paper_pair).items()}
-        big += _engines.render_paper(_engines.load(d), {s: judge_all(f, claims)
-                                                        for s, f in sides.items() if f},
-                                     claims, paper_pair)
-    engines = _engines.render(_engines.load(preset_dir(figures_dir, _engines.PAIR[1])),
-                              {s: judge_all(f, claims) for s, f in pair.items() if f}, claims, big)
+        big_judged = {s: judge_all(f, claims) for s, f in sides.items() if f}
+        big += _engines.render_paper(_engines.load(d), big_judged, claims, paper_pair)
+        dem.append(_engines.verdicts_of(big_judged.get(paper_pair[1]), sides[paper_pair[1]],
+                                       paper_pair[0]))
+    engines = _engines.render(_engines.load(preset_dir(figures_dir, _engines.PAIR[1])), judged,
+                              claims, big)
+    fast = preset_dir(figures_dir, _rate.PAIR[1])
+    studies = {**studies, ENGINES: [x for x in dem if x]}
+    if _definitions.load(fast):
+        studies[LARGE_DEFINITIONS] = _definitions.load(fast)
     rate = []
     for checked in _rate.PAIRS:
         faster = preset_dir(figures_dir, checked[1])
@@ -249,7 +263,6 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
         rate += _rate.render(_rate.load(faster), {s: judge_all(f, claims) for s, f in sides.items() if f},
                              claims, {s: f.get("fig2_avalanche_criterion") for s, f in sides.items()},
                              checked)
-    fast = preset_dir(figures_dir, _rate.PAIR[1])
     text = render(figs, claims,
                   render_scales(figures_dir) + render_by_scale(figures_dir, claims)
                   + render_preparation(figures_dir)
