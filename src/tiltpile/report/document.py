@@ -253,9 +253,8 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
     engines = _engines.render(_engines.load(preset_dir(figures_dir, _engines.PAIR[1])), judged,
                               claims, big)
     fast = preset_dir(figures_dir, _rate.PAIR[1])
-    studies = {**studies, ENGINES: [x for x in dem if x]}
-    if _definitions.load(fast):
-        studies[LARGE_DEFINITIONS] = _definitions.load(fast)
+    extra = {ENGINES: [x for x in dem if x], LARGE_DEFINITIONS: _definitions.load(fast)}
+    studies = {**studies, **{k: v for k, v in extra.items() if v}}
     rate = []
     for checked in _rate.PAIRS:
         faster = preset_dir(figures_dir, checked[1])
