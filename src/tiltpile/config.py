@@ -172,6 +172,17 @@ class ProtocolConfig:
     end_span_deg: float = _f(1.0, lo=0.0, lo_open=True, hi=90.0,
                              doc="tilt span [deg] of consecutive frames above end_ke that ends the run")
 
+    @property
+    def history_step_deg(self) -> float:
+        """The rotation of gravity per step in the history's legs: ``pretilt_per_step_deg``, or
+        the ramp's ``tilt_per_step_deg`` when that is 0."""
+        return self.pretilt_per_step_deg or self.tilt_per_step_deg
+
+    @property
+    def history_rate(self) -> float:
+        """How many times the ramp's rate the history's legs tilt at (1.0 at the ramp's rate)."""
+        return self.history_step_deg / self.tilt_per_step_deg
+
 
 @dataclass(frozen=True)
 class HealthConfig:

@@ -21,6 +21,7 @@ def test_paper_preset_matches_the_paper():
     # Deboeuf et al.'s history: to 16 deg, two full cycles +-16 deg, back to 0, at the ramp's rate
     assert cfg.protocol.pretilt_deg == (16.0, -16.0, 16.0, -16.0, 16.0, 0.0)
     assert cfg.protocol.pretilt_per_step_deg == 0.0
+    assert cfg.protocol.history_step_deg == 0.001 and cfg.protocol.history_rate == 1.0
 
 
 def test_paper_fresh_is_the_paper_preset_without_its_history():
@@ -193,6 +194,7 @@ def test_the_default_preset_is_default_fresh_with_deboeufs_history():
     default, fresh = config.load("default"), config.load("default-fresh")
     assert default.protocol.pretilt_deg == (16.0, -16.0, 16.0, -16.0, 16.0, 0.0)
     assert default.protocol.pretilt_per_step_deg == 10 * default.protocol.tilt_per_step_deg == 0.02
+    assert default.protocol.history_step_deg == 0.02 and default.protocol.history_rate == 10.0
     assert fresh.protocol.pretilt_deg == ()
     assert dataclasses.replace(default, protocol=dataclasses.replace(
         default.protocol, pretilt_deg=(), pretilt_per_step_deg=0.0)) == fresh

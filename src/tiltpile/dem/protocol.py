@@ -259,7 +259,7 @@ def _run(config, p: DemPile, st: DemState, q: int, dt: float):
 
     while st.phase == "pretilt":
         target, start = legs[st.leg], st.leg_start
-        n_leg = int(round(abs(target - start) / (proto.pretilt_per_step_deg or proto.tilt_per_step_deg)))
+        n_leg = int(round(abs(target - start) / proto.history_step_deg))
         if st.leg_step < n_leg:
             d = (target - start) / n_leg
             k = min(LEG_CHUNK, n_leg - st.leg_step)

@@ -69,8 +69,7 @@ def _history(ref: str) -> str:
     a = max((abs(x) for x in p.pretilt_deg), default=0.0)
     if tuple(p.pretilt_deg) != cfgmod.deboeuf_history(2, a):
         return f"history {cfgmod.history_label(p.pretilt_deg)}"
-    rate = (p.pretilt_per_step_deg or p.tilt_per_step_deg) / p.tilt_per_step_deg
-    at = "the ramp's rate" if rate == 1 else f"{rate:g}x the ramp's rate"
+    at = "the ramp's rate" if p.history_rate == 1 else f"{p.history_rate:g}x the ramp's rate"
     return f"cycled twice to +-{a:g} deg at {at}"
 
 

@@ -42,11 +42,7 @@ def target(pair=PAIR) -> int:
 
 def speedup(pair=PAIR) -> float:
     """How many times faster than the ramp the history of ``pair``'s faster preset tilts."""
-    return _speedup(cfgmod.load(pair[1]).protocol)
-
-
-def _speedup(proto) -> float:
-    return proto.pretilt_per_step_deg / proto.tilt_per_step_deg
+    return cfgmod.load(pair[1]).protocol.history_rate
 
 
 #: the study of the faster scale's figures directory (None without one): the same file as the
@@ -98,7 +94,7 @@ def render(study: dict | None, judged: dict[str, list], claims: list[Claim],
         return []
     ref, fast = pair
     proto = cfgmod.load(fast).protocol
-    n, want, x = len(study["seeds"]), target(pair), _speedup(proto)
+    n, want, x = len(study["seeds"]), target(pair), proto.history_rate
     lines = ["", f"## The history at {x:g}x the ramp's rate: {fast} against {ref}", "",
              f"The paper's piles with Deboeuf's history tilted at {proto.pretilt_per_step_deg:g} deg "
              f"per step instead of the ramp's {proto.tilt_per_step_deg:g} (preset `{fast}`), against "

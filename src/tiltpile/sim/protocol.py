@@ -416,7 +416,7 @@ def _pretilt_chunk(sysm: System, config, n_mobile: int):
     st, proto = sysm.scalars, config.protocol
     legs = proto.pretilt_deg
     target, start = legs[st.leg], st.leg_start
-    n_leg = int(round(abs(target - start) / (proto.pretilt_per_step_deg or proto.tilt_per_step_deg)))
+    n_leg = int(round(abs(target - start) / proto.history_step_deg))
     if st.leg_step < n_leg:
         d = (target - start) / n_leg  # the last step lands on the target
         k = min(DEPOSITION_CHUNK, n_leg - st.leg_step)
