@@ -17,6 +17,7 @@ import pytest
 
 from tiltpile.figures import data
 from tiltpile.figures import same_piles as sp
+from tiltpile.figures import style
 
 FAST = ("fig2_avalanche_criterion", "fig4_cluster_isostaticity")
 
@@ -144,6 +145,28 @@ def test_the_null_counts_what_chance_moves(ens, tmp_path):
         sp.null_moved(ens, ens, table, 0)
 
 
+def test_workers_compute_the_same_study(ens, tmp_path):
+    """Figures evaluated in two processes give the study of one, bit for bit: the table, both
+    sides' documents and chance's counts (each exchange's run-file links in its own folder), and
+    the progress lines in the same order."""
+    f = ens.frames.copy()
+    f["z"] = f["z"] + 0.05
+    shifted = replace(ens, frames=f)
+    lines, docs = {1: [], 2: []}, {}
+    for w in (1, 2):
+        table, na, nb = sp.ensemble_against_ensemble(ens, shifted, FAST, progress=lines[w].append,
+                                                     workers=w)
+        null = sp.null_moved(ens, shifted, table, 3, stems=FAST, scratch=tmp_path / str(w),
+                             progress=lines[w].append, workers=w)
+        docs[w] = json.dumps(style.jsonable([table.to_dict("records"), na, nb, null]),
+                             sort_keys=True)
+    assert docs[1] == docs[2] and null["flips"] == 3 and null["observed"] > 0
+    assert lines[1] == lines[2] and sum("null: flip" in x for x in lines[2]) == 3
+    assert {p.name for p in (tmp_path / "2").iterdir()} == {"flip0", "flip1", "flip2"}
+    with pytest.raises(ValueError, match="workers must be at least 1"):
+        next(sp.documents_each([("x", ens)], FAST, workers=0))
+
+
 def test_pile_against_pile(ens):
     docs = sp.figure_documents(ens, ("fig2_avalanche_criterion",))
     n2 = docs["fig2_avalanche_criterion"]["numbers"]
@@ -192,4 +215,7 @@ def test_command_refuses_bad_input(smoke_ensemble, tmp_path, capsys):
     assert main(["same-piles", str(smoke_ensemble), str(two), "--out", str(out), "--null", "3",
                  "--label", "two", "--quiet"]) == 2
     assert "--null 3: on 2 seeds no figure number has an error" in capsys.readouterr().err
+    assert main(["same-piles", str(smoke_ensemble), str(two), "--out", str(out), "--workers",
+                 "0", "--label", "two"]) == 2
+    assert "--workers must be 1 or more, got 0" in capsys.readouterr().err
     assert not out.exists()

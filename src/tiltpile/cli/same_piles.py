@@ -29,6 +29,9 @@ def add_parser(sub) -> None:
                    help="also count the figure numbers that move by chance: K random exchanges "
                         "of the two runs of each seed, each scored like the real pair (two "
                         "evaluations of the figures per exchange; default 0: none)")
+    p.add_argument("--workers", type=int, default=1, metavar="N",
+                   help="processes evaluating the figures (default 1); the study is the same, "
+                        "bit for bit, with any number")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
 
@@ -69,6 +72,8 @@ def run(args) -> int:
     from tiltpile.figures import same_piles as sp
     from tiltpile.paths import check_output
 
+    if args.workers < 1:
+        raise ConfigError(f"--workers must be 1 or more, got {args.workers}")
     if args.null < 0:
         raise ConfigError(f"--null must be 0 or more, got {args.null}")
     if args.seeds is not None and args.seeds < sp.MIN_SEEDS:
@@ -97,7 +102,7 @@ def run(args) -> int:
     import tempfile
     with tempfile.TemporaryDirectory(prefix="tiltpile-same-piles-") as scratch:
         doc = sp.study(ref, ens, ref_label, label, progress=say, null_flips=args.null,
-                       scratch=scratch)
+                       scratch=scratch, workers=args.workers)
     path = sp.write_study(doc, args.out)
     print(f"{label} against {ref_label} on {len(seeds)} seeds: {doc['n_moved']} of "
           f"{doc['n_with_error']} figure numbers with an error moved by more than "

@@ -163,6 +163,45 @@ def figure_documents(ens, stems=FIGURES, notebooks_dir="notebooks",
     return out
 
 
+def documents_each(jobs, stems=FIGURES, notebooks_dir="notebooks", workers: int = 1,
+                   progress=None):
+    """:func:`figure_documents` of each ensemble of ``jobs``, an iterable of (progress line or
+    None, ensemble), yielded in the order of ``jobs``. A generator of jobs is advanced only as
+    evaluations are due, so it makes its ensembles as they are needed. With ``workers`` > 1 they
+    are computed in that many processes, at most two per worker made and waiting at a time; each
+    document is a function of its ensemble alone (the figures' bootstraps draw from generators of
+    fixed seeds), so the documents are those of one process, bit for bit. ``progress`` is called
+    with a job's line as its evaluation starts (one process) or ends (several)."""
+    say = progress or (lambda line: None)
+    if workers < 1:
+        raise ValueError(f"workers must be at least 1, got {workers}")
+    if workers == 1:
+        for line, e in jobs:
+            if line:
+                say(line)
+            yield figure_documents(e, stems, notebooks_dir)
+        return
+    import collections
+    from concurrent.futures import ProcessPoolExecutor
+
+    with ProcessPoolExecutor(workers) as pool:
+        waiting = collections.deque()
+
+        def ready():
+            line, fut = waiting.popleft()
+            docs = fut.result()
+            if line:
+                say(line)
+            return docs
+
+        for line, e in jobs:
+            waiting.append((line, pool.submit(figure_documents, e, stems, notebooks_dir)))
+            if len(waiting) >= 2 * workers:
+                yield ready()
+        while waiting:
+            yield ready()
+
+
 def document(meta: dict, stem: str, numbers: dict) -> dict:
     """The figure's JSON document as ``style.save`` writes it, in JSON form (NaN as None)."""
     return json.loads(json.dumps({"figure": stem, **style.jsonable(meta or {}),
@@ -207,30 +246,38 @@ def _all_scalars(docs: dict) -> dict[str, float]:
 
 
 def ensemble_against_ensemble(ref, ens, stems=FIGURES, notebooks_dir="notebooks",
-                              progress=None) -> tuple[pd.DataFrame, dict, dict]:
+                              progress=None, workers: int = 1) -> tuple[pd.DataFrame, dict, dict]:
     """Every scalar figure number of ``ens`` against ``ref`` on their common seeds (module
     docstring). Returns (table, numbers_ref, numbers) where table has one row per number:
     figure, key, ref, value, shift, se_ref, se, sigma (shift / sqrt(se_ref^2 + se^2); 0 where
     the shift is 0, NaN where an error is), se_paired (jackknife of the shift, the same seed left
     out of both), sigma_paired, moved (|sigma| > SIGMA_LIMIT); and the figure documents of both
-    on the common seeds ({stem: document}). ``progress``: called with a line per evaluation.
+    on the common seeds ({stem: document}). ``progress``: called with a line per evaluation;
+    ``workers``: processes evaluating the figures (:func:`documents_each`; the same table).
     With 2 common seeds no number has an error (NaN; the jackknife needs 3 runs)."""
     seeds = common_seeds(ref, ens)
     if len(seeds) < MIN_SEEDS:
         raise ValueError(f"the ensembles share {len(seeds)} seeds: the comparison needs "
                          f"{MIN_SEEDS} or more")
     a, b = subset(ref, seeds), subset(ens, seeds)
-    say = progress or (lambda line: None)
-    say(f"all {len(seeds)} seeds")
-    na, nb = figure_documents(a, stems, notebooks_dir), figure_documents(b, stems, notebooks_dir)
+    jackknifed = seeds if len(seeds) >= JACKKNIFE_SEEDS else []
+
+    def jobs():
+        yield f"all {len(seeds)} seeds", a
+        yield None, b
+        for k, s in enumerate(jackknifed):
+            rest = [t for t in seeds if t != s]
+            yield f"leaving out seed {s} ({k + 1} of {len(seeds)})", subset(a, rest)
+            yield None, subset(b, rest)
+
+    docs = documents_each(jobs(), stems, notebooks_dir, workers, progress)
+    na, nb = next(docs), next(docs)
     fa, fb = _all_scalars(na), _all_scalars(nb)
     loo_a, loo_b = [], []
-    jackknifed = seeds if len(seeds) >= JACKKNIFE_SEEDS else []
-    for k, s in enumerate(jackknifed):
-        say(f"leaving out seed {s} ({k + 1} of {len(seeds)})")
-        rest = [t for t in seeds if t != s]
-        loo_a.append(_all_scalars(figure_documents(subset(a, rest), stems, notebooks_dir)))
-        loo_b.append(_all_scalars(figure_documents(subset(b, rest), stems, notebooks_dir)))
+    for _ in jackknifed:
+        loo_a.append(_all_scalars(next(docs)))
+        loo_b.append(_all_scalars(next(docs)))
+    docs.close()
     shift_full = {k: fb[k] - fa[k] for k in fa if k in fb}
     if loo_a:
         se_a, se_b = jackknife(fa, loo_a), jackknife(fb, loo_b)
@@ -353,7 +400,7 @@ def mixed(a, b, flip, scratch=None):
 
 
 def null_moved(ref, ens, table: pd.DataFrame, flips: int, seed: int = 0, stems=FIGURES,
-               notebooks_dir="notebooks", scratch=None, progress=None) -> dict:
+               notebooks_dir="notebooks", scratch=None, progress=None, workers: int = 1) -> dict:
     """The number of figure numbers that move by more than SIGMA_LIMIT when nothing but chance
     separates the two ensembles: ``flips`` random exchanges of the two runs of each seed (each
     seed's pair exchanged with probability 1/2, a numpy generator of ``seed``), each scored as
@@ -362,7 +409,9 @@ def null_moved(ref, ens, table: pd.DataFrame, flips: int, seed: int = 0, stems=F
     the figures instead of 2 (N + 1). Under the hypothesis that the two settings give the same
     piles' statistics the runs of a seed are exchangeable, and the observed count is a draw of
     this distribution. Returns the counts, their median and 95th percentile, and the one-sided p
-    value of the observed count, (1 + #(count >= observed)) / (1 + flips)."""
+    value of the observed count, (1 + #(count >= observed)) / (1 + flips). ``workers``: processes
+    evaluating the figures (:func:`documents_each`; the same counts). Each exchange's run-file
+    links (:func:`mixed`) go to its own folder of ``scratch``."""
     if flips < 1:
         raise ValueError(f"flips must be at least 1, got {flips}")
     seeds = common_seeds(ref, ens)
@@ -373,20 +422,26 @@ def null_moved(ref, ens, table: pd.DataFrame, flips: int, seed: int = 0, stems=F
     comb = {f"{r['figure']}.{r['key']}": math.hypot(r["se_ref"], r["se"])
             for r in table.to_dict("records")}
     rng = np.random.default_rng(seed)
-    say = progress or (lambda line: None)
+    pairs = [rng.integers(0, 2, len(seeds)).astype(bool) for _ in range(flips)]
+
+    def jobs():
+        for i, flip in enumerate(pairs):
+            x, y = mixed(a, b, flip, None if scratch is None else Path(scratch) / f"flip{i}")
+            yield (f"null: flip {i + 1} of {flips} ({int(flip.sum())} of {len(seeds)} seeds "
+                   "exchanged)"), x
+            yield None, y
+
+    docs = documents_each(jobs(), stems, notebooks_dir, workers, progress)
     counts = []
-    for i in range(flips):
-        flip = rng.integers(0, 2, len(seeds)).astype(bool)
-        say(f"null: flip {i + 1} of {flips} ({int(flip.sum())} of {len(seeds)} seeds exchanged)")
-        x, y = mixed(a, b, flip, scratch)
-        fa = _all_scalars(figure_documents(x, stems, notebooks_dir))
-        fb = _all_scalars(figure_documents(y, stems, notebooks_dir))
+    for _ in pairs:
+        fa, fb = _all_scalars(next(docs)), _all_scalars(next(docs))
         n = 0
         for key, c in comb.items():
             if key in fa and key in fb and math.isfinite(c):
                 sig = _in_sigma(fb[key] - fa[key], c)
                 n += bool(math.isfinite(sig) and abs(sig) > SIGMA_LIMIT)
         counts.append(n)
+    docs.close()
     observed = int(table["moved"].sum())
     c = np.array(counts)
     return {"flips": flips, "seed": seed, "counts": counts, "median": float(np.median(c)),
@@ -399,15 +454,16 @@ def null_moved(ref, ens, table: pd.DataFrame, flips: int, seed: int = 0, stems=F
 
 
 def study(ref, ens, ref_label: str, label: str, notebooks_dir="notebooks", progress=None,
-          null_flips: int = 0, scratch=None) -> dict:
+          null_flips: int = 0, scratch=None, workers: int = 1) -> dict:
     """The whole comparison (module docstring) as one JSON-able document: the labels, the
     common seeds, ``pile_against_pile``, the ensemble table as rows, the count of numbers moved by
     more than SIGMA_LIMIT, with ``null_flips`` > 0 the counts chance gives (:func:`null_moved`,
     under ``null``), and ``documents``: {label: {stem: figure document}} of both on the common
-    seeds (for the report's judges)."""
-    table, na, nb = ensemble_against_ensemble(ref, ens, FIGURES, notebooks_dir, progress)
+    seeds (for the report's judges). ``workers``: processes evaluating the figures (the same
+    document)."""
+    table, na, nb = ensemble_against_ensemble(ref, ens, FIGURES, notebooks_dir, progress, workers)
     null = (null_moved(ref, ens, table, null_flips, notebooks_dir=notebooks_dir, scratch=scratch,
-                       progress=progress) if null_flips else None)
+                       progress=progress, workers=workers) if null_flips else None)
     seeds = common_seeds(ref, ens)
     a, b = subset(ref, seeds), subset(ens, seeds)
     fig2 = "fig2_avalanche_criterion"
