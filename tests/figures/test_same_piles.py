@@ -50,6 +50,13 @@ def test_jackknife_of_a_mean_is_its_standard_error():
     assert se == pytest.approx(x.std(ddof=1) / math.sqrt(x.size), rel=1e-12)
     # a number that one left-out run makes undefined has no error
     assert math.isnan(sp.jackknife({"m": 1.0}, loo[:-1] + [{"m": math.nan}])["m"])
+    # values that differ by rounding only (0.45 summed in another order) have no spread: a shift
+    # of one frame over an error of 3e-15 is not a move of 1.7e13 standard errors
+    rounded = [{"m": 0.45}, {"m": 0.45000000000000284}, {"m": 0.45}, {"m": 0.45000000000000284}]
+    assert sp.jackknife({"m": 0.45}, rounded)["m"] == 0.0
+    assert math.isnan(sp._in_sigma(0.05, 0.0))                     # nothing to move by
+    tiny = [{"m": 1e-8 * (1 + 1e-3 * i)} for i in range(4)]           # a real spread at 1e-8
+    assert sp.jackknife({"m": 1e-8}, tiny)["m"] > 0.0
 
 
 def test_subset_and_common_seeds(ens):

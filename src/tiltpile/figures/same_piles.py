@@ -45,6 +45,9 @@ from . import data as _data
 from . import style
 
 NAME = "same_piles"
+#: relative spread below which leave-one-out values are the same number, rounded differently
+#: (:func:`jackknife`): ~1e4 units in the last place of a double, far below any run-to-run error
+ROUNDING = 1e-12
 # the figures' stems, as their notebooks are named (notebooks/<stem>.ipynb)
 FIGURES = ("fig1_isostaticity", "fig2_avalanche_criterion", "fig3_clusters_failure",
            "fig4_cluster_isostaticity", "fig5_cluster_sizes", "fig6_cluster_stability",
@@ -229,15 +232,20 @@ def scalars(numbers: dict) -> dict[str, float]:
 def jackknife(values_full: dict, values_loo: list[dict]) -> dict[str, float]:
     """Jackknife standard error of each key of ``values_full`` from its leave-one-run-out values
     (one dict per run left out): sqrt((n - 1) / n * sum_i (x_i - mean)^2); NaN where the full
-    value is not finite or any leave-one-out value is not (the number hangs on a single run)."""
+    value is not finite or any leave-one-out value is not (the number hangs on a single run).
+    Leave-one-out values that differ only by rounding (a spread below ROUNDING times their
+    magnitude, as a maximum over runs summed in another order) give 0, not a spread of a few
+    units in the last place: a shift divided by such an error would count as moved by 1e13
+    standard errors."""
     n = len(values_loo)
     out = {}
     for k, full in values_full.items():
         x = np.array([v.get(k, math.nan) for v in values_loo], float)
         if n < 2 or not math.isfinite(full) or not np.isfinite(x).all():
             out[k] = math.nan
-        else:
-            out[k] = float(math.sqrt((n - 1) / n * float(((x - x.mean()) ** 2).sum())))
+            continue
+        se = float(math.sqrt((n - 1) / n * float(((x - x.mean()) ** 2).sum())))
+        out[k] = 0.0 if se <= ROUNDING * max(abs(full), float(np.abs(x).max())) else se
     return out
 
 
