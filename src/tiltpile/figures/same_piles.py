@@ -46,7 +46,7 @@ from . import style
 
 NAME = "same_piles"
 #: relative spread below which leave-one-out values are the same number, rounded differently
-#: (:func:`jackknife`): ~1e4 units in the last place of a double, far below any run-to-run error
+#: (:func:`jackknife`): ~4500 units in the last place of a double, far below any run-to-run error
 ROUNDING = 1e-12
 # the figures' stems, as their notebooks are named (notebooks/<stem>.ipynb)
 FIGURES = ("fig1_isostaticity", "fig2_avalanche_criterion", "fig3_clusters_failure",
