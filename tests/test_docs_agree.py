@@ -246,6 +246,27 @@ def test_what_we_found_quotes_the_committed_history_rate_check():
     assert ("the history's rate matters" in FOUND) == (word == "fails")
 
 
+def test_what_we_found_quotes_the_committed_5x_history_check():
+    """The README's paper-5x sentence gives that committed same-piles study's numbers (seeds, the
+    slide's paired difference with its interval, the moved count, chance's 95th percentile), and
+    says "it passes" only when the report's decision is "passes"."""
+    from tiltpile.report import CLAIMS, history_rate
+    from tiltpile.report.document import judge_all, load_figures
+
+    fig = ROOT / "figures" / "paper-5x"
+    study = history_rate.load(fig)
+    d = study["pile_against_pile"]["difference"]["theta_first_slide"]
+    assert f"`paper-5x`, {len(study['seeds'])} of the same piles" in FOUND
+    assert (f"slide {d['mean']:.2f} [{d['ci_low']:.2f}, {d['ci_high']:.2f}] deg later and "
+            f"{study['n_moved']} numbers move where chance moves up to "
+            f"{study['null']['p95']:.0f}") in FOUND
+    pair = history_rate.PAIRS[1]
+    judged = {s: judge_all(load_figures(d_), CLAIMS)
+              for s, d_ in history_rate.side_dirs(fig, pair).items()}
+    word = history_rate.decision(study, len(history_rate.differing(judged, CLAIMS, pair)))
+    assert pair == ("paper", "paper-5x") and ("it passes" in FOUND) == (word == "passes")
+
+
 def test_what_we_found_counts_the_piles_of_the_committed_definitions_study():
     """The definitions bullet names as many 4000-grain piles as figures/paper-fast/definitions.json
     holds, so that it is updated with the study."""
