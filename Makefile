@@ -77,6 +77,7 @@ RUNS_paper-fresh := 50
 RUNS_paper-fast := 16
 RUNS_paper-fast-dem := 2
 RUNS_paper-5x := 8
+RUNS_paper-5x-dem := 2
 RUNS_paper-dem := 2
 RUNS ?= $(RUNS_$(PRESET))
 
@@ -301,6 +302,8 @@ REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparati
                   $(REPORT_ROOT)/default-dem/same-piles/same_piles.json \
                   $(REPORT_ROOT)/paper-fast-dem/same-piles/same_piles.json \
                   $(REPORT_ROOT)/paper-fast-dem/same-piles/*/fig*.json \
+                  $(REPORT_ROOT)/paper-5x-dem/same-piles/same_piles.json \
+                  $(REPORT_ROOT)/paper-5x-dem/same-piles/*/fig*.json \
                   $(REPORT_ROOT)/paper-dem/same-piles/same_piles.json \
                   $(REPORT_ROOT)/paper-dem/same-piles/*/fig*.json \
                   $(REPORT_ROOT)/study-friction/study.json \
@@ -450,20 +453,20 @@ definitions: | $(STAMP)
 	@test -n "$(wildcard $(DATA)/run_*.h5)" || { echo "make definitions: no run files in DATA=$(DATA) (the definitions need them, not records)"; exit 2; }
 	$(ANALYSIS_ENV) $(PY) -m tiltpile definitions $(DATA) --out $(FIGURES)/definitions.json $(if $(G),--g $(G))
 
-# `make engines [ENGINES=default|paper-fast|paper] [ENGINES_REF=dir] [ENGINES_DEM=dir]`: the piles of
+# `make engines [ENGINES=default|paper-fast|paper-5x|paper] [ENGINES_REF=dir] [ENGINES_DEM=dir]`: the piles of
 # preset ENGINES in both engines (preset ENGINES-dem: the soft-sphere DEM), pile against pile and
 # every figure number ensemble against ensemble (`tiltpile same-piles`), into
 # figures/ENGINES-dem/same-piles/ (same_piles.json and both sides' figure documents), which
 # the report's section "Same piles, another model" reads (then `make reports`); its subsection
-# "At 4000 grains" is ENGINES=paper-fast, and "..., with paper's history" ENGINES=paper. Either
-# side may be run files or records: by default data/default and data/default-dem, for paper-fast
-# and paper the committed records of both.
+# "At 4000 grains" is ENGINES=paper-fast, "..., with paper-5x's history" ENGINES=paper-5x and
+# "..., with paper's history" ENGINES=paper. Either side may be run files or records: by default
+# data/default and data/default-dem, for the 4000-grain presets the committed records of both.
 ENGINES ?= default
 ENGINES_REF ?= $(if $(filter default,$(ENGINES)),data/default,figures/$(ENGINES)/records)
 ENGINES_DEM ?= $(if $(filter default,$(ENGINES)),data/default-dem,figures/$(ENGINES)-dem/records)
 .PHONY: engines
 engines: | $(STAMP)
-	@case "$(ENGINES)" in default|paper-fast|paper) ;; *) echo "make engines: ENGINES=$(ENGINES): give default, paper-fast or paper"; exit 2;; esac
+	@case "$(ENGINES)" in default|paper-fast|paper-5x|paper) ;; *) echo "make engines: ENGINES=$(ENGINES): give default, paper-fast, paper-5x or paper"; exit 2;; esac
 	$(ANALYSIS_ENV) $(PY) -m tiltpile same-piles $(ENGINES_REF) $(ENGINES_DEM) --ref-label $(ENGINES) \
 	  --label $(ENGINES)-dem --out figures/$(ENGINES)-dem/same-piles --quiet
 

@@ -67,6 +67,7 @@ PRESET_TABLE = (
     Preset("paper-fast", 16, "figures/paper-fast", "fig2"),
     Preset("paper-fast-dem", 2, "figures/paper-fast-dem", ""),
     Preset("paper-5x", 8, "figures/paper-5x", ""),
+    Preset("paper-5x-dem", 2, "figures/paper-5x-dem", ""),
     Preset("paper-dem", 2, "figures/paper-dem", ""),
 )
 PRESETS = tuple(p.name for p in PRESET_TABLE)

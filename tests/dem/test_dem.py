@@ -207,7 +207,7 @@ def test_the_dem_section_marks_the_engine_and_leaves_cd_configurations_alone():
     """Only the DEM presets have a [dem] section, so no CD configuration's JSON or hash changes; a
     dem key (or an empty [dem] table) selects the DEM, which has its own hash and reads back the
     same. default-dem is the default preset with the DEM's defaults, on the same piles, as
-    paper-fast-dem and paper-dem are of theirs."""
+    paper-fast-dem, paper-5x-dem and paper-dem are of theirs."""
     for name in config.PRESETS:
         cfg = config.load(name)
         if name.endswith("-dem"):
@@ -217,7 +217,8 @@ def test_the_dem_section_marks_the_engine_and_leaves_cd_configurations_alone():
     assert config.load("default-dem") == config.load("default", overrides=["dem.kn=200000.0"])
     assert config.without_history(config.load("default-dem")) == config.load("default-fresh")
     # each DEM preset is its base preset with the DEM's defaults: the same piles and protocol
-    for dem_name, base in (("paper-fast-dem", "paper-fast"), ("paper-dem", "paper")):
+    for dem_name, base in (("paper-fast-dem", "paper-fast"), ("paper-5x-dem", "paper-5x"),
+                           ("paper-dem", "paper")):
         assert config.load(dem_name) == config.load(base, overrides=["dem.kn=200000.0"])
     dem = config.load("default", overrides=["dem.kn=800000.0"])
     assert dem.engine == "lammps" and dem.dem.kn == 8e5 and dem.hash() != config.load("default").hash()

@@ -622,6 +622,11 @@ def test_the_engines_section_at_4000_grains_judges_each_sides_figures_of_the_pai
     assert ("(preset `paper-dem`: 3 of `paper`'s piles, cycled twice to +-16 deg at the ramp's "
             "rate, in the DEM, several hours each) is not yet computed") in own
     assert "make engines ENGINES=paper`" in own
+    # paper-5x's history, which passed its check against paper's (paper-5x-dem): its own too
+    own = text.split("### At 4000 grains, with paper-5x's history\n")[1].split("\n#")[0]
+    assert ("(preset `paper-5x-dem`: 3 of `paper-5x`'s piles, cycled twice to +-16 deg at 5x the "
+            "ramp's rate, in the DEM, several hours each) is not yet computed") in own
+    assert "make engines ENGINES=paper-5x`" in own
     big = root / "paper-fast-dem" / "same-piles"
     study = dict(_same_piles_study((0, 1)), ref="paper-fast", label="paper-fast-dem",
                  n_with_error=0, n_moved=0)

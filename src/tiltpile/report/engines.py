@@ -4,8 +4,9 @@ pile (``same_piles.json`` of ``tiltpile same-piles``, ``make engines``), and the
 judged on both: which disagreements with the paper both engines share (then not our engine's)
 and which only one has. Its subsections at 4000 grains do the same for each pair of
 ``PAPER_PAIRS``: paper-fast's piles (preset ``paper-fast-dem`` against ``paper-fast``'s records of
-the same seeds, ``make engines ENGINES=paper-fast``) and the paper's own (``paper-dem`` against
-the committed ``paper`` records, ``make engines ENGINES=paper``), the claims judged on the
+the same seeds, ``make engines ENGINES=paper-fast``), paper-5x's (``paper-5x-dem``, ``make engines
+ENGINES=paper-5x``) and the paper's own (``paper-dem`` against the committed ``paper`` records,
+``make engines ENGINES=paper``), the claims judged on the
 figure documents the study writes of each side.
 
 The per-claim verdicts are the report's own (:func:`tiltpile.report.document.judge_all` on each
@@ -27,8 +28,9 @@ from .rigidity import BEYOND
 #: report's (``scales.scale_dirs``)
 PAIR = ("default", "default-dem")
 #: the same at 4000 grains, one subsection each: paper-fast's piles (their history at 10x the
-#: ramp's rate) and the paper's own (the history at the ramp's rate, the committed records)
-PAPER_PAIRS = (("paper-fast", "paper-fast-dem"), ("paper", "paper-dem"))
+#: ramp's rate), paper-5x's (5x, the history that passed its check against paper's) and the
+#: paper's own (the history at the ramp's rate, the committed records)
+PAPER_PAIRS = (("paper-fast", "paper-fast-dem"), ("paper-5x", "paper-5x-dem"), ("paper", "paper-dem"))
 PAPER_PAIR = PAPER_PAIRS[0]
 #: where ``make engines`` writes the pile-against-pile study, below the other engine's figures
 STUDY = Path("same-piles") / "same_piles.json"
