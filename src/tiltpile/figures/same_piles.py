@@ -33,6 +33,7 @@ from __future__ import annotations
 import contextlib
 import json
 import math
+import os
 from dataclasses import replace
 from pathlib import Path
 
@@ -166,6 +167,41 @@ def figure_documents(ens, stems=FIGURES, notebooks_dir="notebooks",
     return out
 
 
+#: the environment each worker process of :func:`documents_each` starts in: one BLAS (and
+#: OpenMP) thread. One process's numpy keeps ~1.4 cores busy for no gain (its threads spin), so W
+#: workers with those threads on W cores oversubscribe them; with one thread each, two workers
+#: compute a paper-scale comparison 1.7x faster than one process (docs/performance-log.md).
+WORKER_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+
+
+@contextlib.contextmanager
+def _environ(values: dict[str, str]):
+    """``os.environ`` with ``values`` set inside the block, as it was after it."""
+    old = {k: os.environ.get(k) for k in values}
+    os.environ.update(values)
+    try:
+        yield
+    finally:
+        for k, v in old.items():
+            if v is None:
+                os.environ.pop(k, None)
+            else:
+                os.environ[k] = v
+
+
+@contextlib.contextmanager
+def worker_pool(workers: int):
+    """A ProcessPoolExecutor of ``workers`` fresh interpreters ("spawn") started in
+    ``WORKER_ENV``: a forked worker would keep the BLAS threads its parent started with. The
+    caller's environment is as it was after the block."""
+    import multiprocessing
+    from concurrent.futures import ProcessPoolExecutor
+
+    with _environ(WORKER_ENV), ProcessPoolExecutor(
+            workers, mp_context=multiprocessing.get_context("spawn")) as pool:
+        yield pool
+
+
 def documents_each(jobs, stems=FIGURES, notebooks_dir="notebooks", workers: int = 1,
                    progress=None):
     """:func:`figure_documents` of each ensemble of ``jobs``, an iterable of (progress line or
@@ -185,9 +221,8 @@ def documents_each(jobs, stems=FIGURES, notebooks_dir="notebooks", workers: int 
             yield figure_documents(e, stems, notebooks_dir)
         return
     import collections
-    from concurrent.futures import ProcessPoolExecutor
 
-    with ProcessPoolExecutor(workers) as pool:
+    with worker_pool(workers) as pool:
         waiting = collections.deque()
 
         def ready():
