@@ -40,6 +40,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
+from tiltpile import ensemble as _ensemble
 from tiltpile.analysis.stats import bootstrap_ci
 
 from . import data as _data
@@ -167,11 +168,12 @@ def figure_documents(ens, stems=FIGURES, notebooks_dir="notebooks",
     return out
 
 
-#: the environment each worker process of :func:`documents_each` starts in: one BLAS (and
-#: OpenMP) thread. One process's numpy keeps ~1.4 cores busy for no gain (its threads spin), so W
-#: workers with those threads on W cores oversubscribe them; with one thread each, two workers
-#: compute a paper-scale comparison 1.7x faster than one process (docs/performance-log.md).
-WORKER_ENV = {"OPENBLAS_NUM_THREADS": "1", "OMP_NUM_THREADS": "1", "MKL_NUM_THREADS": "1"}
+#: the environment each worker process of :func:`documents_each` starts in: one thread of BLAS,
+#: OpenMP and numba each, as the ensemble's workers have. One process's numpy keeps ~1.4 cores
+#: busy for no gain, so W workers with those threads on W cores oversubscribe them; with one
+#: thread each, two workers compute a paper-scale comparison about twice as fast as one process
+#: (docs/performance-log.md).
+WORKER_ENV = _ensemble.WORKER_ENV
 
 
 @contextlib.contextmanager
