@@ -178,11 +178,13 @@ def test_worker_processes_run_one_blas_thread_and_leave_the_callers_environment(
     """Each worker starts with one BLAS thread (W workers with the threads of one process each
     oversubscribe W cores), and the caller's environment is restored, unset keys unset."""
     import os
+
+    from tiltpile.ensemble import WORKER_ENV
     monkeypatch.delenv("OPENBLAS_NUM_THREADS", raising=False)
     monkeypatch.setenv("OMP_NUM_THREADS", "3")
     with sp.worker_pool(2) as pool:
-        seen = {k: pool.submit(os.getenv, k).result() for k in sp.WORKER_ENV}
-    assert seen == sp.WORKER_ENV
+        seen = {k: pool.submit(os.getenv, k).result() for k in WORKER_ENV}
+    assert seen == WORKER_ENV
     assert "OPENBLAS_NUM_THREADS" not in os.environ and os.environ["OMP_NUM_THREADS"] == "3"
 
 

@@ -168,14 +168,6 @@ def figure_documents(ens, stems=FIGURES, notebooks_dir="notebooks",
     return out
 
 
-#: the environment each worker process of :func:`documents_each` starts in: one thread of BLAS,
-#: OpenMP and numba each, as the ensemble's workers have. One process's numpy keeps ~1.4 cores
-#: busy for no gain, so W workers with those threads on W cores oversubscribe them; with one
-#: thread each, two workers compute a paper-scale comparison about twice as fast as one process
-#: (docs/performance-log.md).
-WORKER_ENV = _ensemble.WORKER_ENV
-
-
 @contextlib.contextmanager
 def _environ(values: dict[str, str]):
     """``os.environ`` with ``values`` set inside the block, as it was after it."""
@@ -193,13 +185,16 @@ def _environ(values: dict[str, str]):
 
 @contextlib.contextmanager
 def worker_pool(workers: int):
-    """A ProcessPoolExecutor of ``workers`` fresh interpreters ("spawn") started in
-    ``WORKER_ENV``: a forked worker would keep the BLAS threads its parent started with. The
-    caller's environment is as it was after the block."""
+    """A ProcessPoolExecutor of ``workers`` fresh interpreters ("spawn") started in the
+    ensemble's ``WORKER_ENV`` (one thread of BLAS, OpenMP and numba), for :func:`documents_each`.
+    One process's numpy keeps ~1.4 cores busy for no gain, and a forked worker keeps the threads
+    its parent started with, so W such workers oversubscribe W cores; with one thread each, two
+    workers compute a paper-scale comparison about twice as fast as one process
+    (docs/performance-log.md). The caller's environment is as it was after the block."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
-    with _environ(WORKER_ENV), ProcessPoolExecutor(
+    with _environ(_ensemble.WORKER_ENV), ProcessPoolExecutor(
             workers, mp_context=multiprocessing.get_context("spawn")) as pool:
         yield pool
 
