@@ -240,7 +240,8 @@ def test_bad_options_stop_in_one_line_with_nothing_written(smoke_ensemble, tmp_p
 def test_every_definition_on_fewer_piles_says_what_it_adds_and_where_its_verdicts_differ(tmp_path):
     """figures/paper-fast/definitions-all.json (every definition, on the piles whose run files
     outlived the larger study) gets its own section, naming its seeds, the definitions only it
-    holds, and each verdict of a shared definition that differs from the larger study's."""
+    holds, and each verdict of a shared definition that differs from the larger study's; the
+    section goes once the larger study holds all of its definitions on all of its piles."""
     a, b = load_figures(ROOT / "figures"), load_figures(ROOT / "figures" / "paper")
 
     def d(key, figs):
@@ -270,6 +271,15 @@ def test_every_definition_on_fewer_piles_says_what_it_adds_and_where_its_verdict
     every["definitions"][1] = d("list", a)          # the same verdicts as the larger study
     (fast / rd.EVERY_FILE).write_text(json.dumps(every))
     assert "every verdict is the same on these piles as on the 16 piles" in rd.render_every(fast, CLAIMS)[3]
+    big["seeds"] = list(range(2, 18))               # the larger study on seeds 13-17 too, but
+    (fast / rd.FILE).write_text(json.dumps(big))    # without touching: the section still adds it
+    assert rd.render_every(fast, CLAIMS)[1].startswith("## What the disagreements depend on (5 ")
+    big["definitions"].append(d("touching", b))     # now it holds every definition on every pile
+    (fast / rd.FILE).write_text(json.dumps(big))
+    assert rd.render_every(fast, CLAIMS) == []
+    big["seeds"] = list(range(2, 17))               # ... but not seed 17: the section is back
+    (fast / rd.FILE).write_text(json.dumps(big))
+    assert rd.render_every(fast, CLAIMS)[1].startswith("## What the disagreements depend on (5 ")
 
 
 def test_writing_the_records_of_an_unknown_definition_is_refused_before_anything_is_written(tmp_path):

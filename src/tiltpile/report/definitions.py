@@ -155,7 +155,9 @@ EVERY_FILE = "definitions-all.json"
 def render_every(fast_dir, claims: list[Claim]) -> list[str]:
     """The section at 4000 grains for every definition, on the fewer piles that hold the records
     of all of them (``EVERY_FILE``), with how far its verdicts of the definitions the 16-pile
-    study holds too differ from that study's: what the fewer piles cost. [] without it."""
+    study holds too differ from that study's: what the fewer piles cost. [] without it, and []
+    once the larger study holds every one of its definitions on every one of its piles (it then
+    says all this section would)."""
     doc = load_file(Path(fast_dir) / EVERY_FILE)
     if not doc:
         return []
@@ -164,6 +166,8 @@ def render_every(fast_dir, claims: list[Claim]) -> list[str]:
     big = load(fast_dir)
     if not big:
         return render(doc, claims, scale=where)
+    if subsumes(big, doc):
+        return []
     v, w = verdicts(doc, claims), verdicts(big, claims)
     labels = {d["key"]: d["label"] for d in doc["definitions"]}
     shared = [k for k in v if k in w]
@@ -178,6 +182,15 @@ def render_every(fast_dir, claims: list[Claim]) -> list[str]:
                f"Of the {len(shared)} definitions both studies hold, {said} piles of the study above"
                + (": " + "; ".join(differ) if differ else "") + ".")
     return render(doc, claims, scale=where, preface=preface)
+
+
+def subsumes(big: dict, small: dict) -> bool:
+    """True when study ``big`` holds every definition of study ``small`` and every one of its
+    seeds (a study without seeds is taken to hold none)."""
+    keys = {d["key"] for d in big["definitions"]}
+    seeds = set(big.get("seeds") or [])
+    return ({d["key"] for d in small["definitions"]} <= keys
+            and bool(small.get("seeds")) and set(small["seeds"]) <= seeds)
 
 
 def load_file(path) -> dict | None:
