@@ -7,7 +7,7 @@ PY := $(VENV)/bin/python
 STAMP := $(VENV)/.tiltpile-installed
 export NUMBA_CACHE_DIR ?= $(CURDIR)/.venv/numba-cache
 
-.PHONY: setup test test-fast figures reports bench clean-data FORCE
+.PHONY: setup test test-fast figures reports docs bench clean-data FORCE
 .SECONDEXPANSION:
 
 setup: $(STAMP)
@@ -99,7 +99,9 @@ $(error SET and NB change the results: give VARIANT=name, so that the default fi
 endif
 DATA ?= $(BASE_DATA)
 FIGURES ?= $(if $(filter default,$(PRESET)),figures,figures/$(PRESET))
-REPORT ?= $(if $(filter default,$(PRESET)),paper/REPRODUCTION.md,$(FIGURES)/REPRODUCTION.md)
+REPORT ?= $(FIGURES)/REPRODUCTION.md
+# the main report (tiltpile.report.main), rewritten by the presets it reads first
+MAIN_REPORT := $(if $(filter default paper,$(PRESET)),$(if $(filter figures figures/paper,$(FIGURES)),paper/REPRODUCTION.md))
 EXECUTED := notebooks/executed/$(PRESET)
 else
 DATA ?= data/$(PRESET)-$(VARIANT)
@@ -174,7 +176,7 @@ define update_if_changed
 if cmp -s $(1).tmp $(1); then rm -f $(1).tmp; else mv -f $(1).tmp $(1); fi
 endef
 
-figures: $(FIG_JSON) $(REPORT) $(DIAGNOSTICS)
+figures: $(FIG_JSON) $(REPORT) $(MAIN_REPORT) $(DIAGNOSTICS)
 
 # One build at a time per figures directory: before anything is written (but after the NB check,
 # which writes nothing), FIGURES/.build.lock is taken for this make process and held until it
@@ -317,11 +319,26 @@ $(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli
            src/tiltpile/outputs.py src/tiltpile/paper_values.py | $(STAMP)
 	$(PY) -m tiltpile report --figures $(FIGURES) --out $@
 
+# The main report, paper/REPRODUCTION.md: the paper's scale first, every axis beside it; it reads
+# the figures' JSON of every scale and study under figures/ (tiltpile.report.main).
+# `make docs`: the README's and the docs' generated blocks from the committed figures' JSON
+# (tiltpile.report.blocks); `make reports` runs it too.
+docs: | $(STAMP)
+	$(PY) -m tiltpile docs
+
+paper/REPRODUCTION.md: $(wildcard figures/fig*.json figures/*.json figures/*/fig*.json figures/*/*.json \
+                         figures/*/same-piles/*.json figures/*/same-piles/*/fig*.json) \
+                       $(wildcard src/tiltpile/report/*.py src/tiltpile/report/templates/*.j2) | $(STAMP)
+	$(PY) -m tiltpile report --root figures --out $@
+
 # `make reports`: every committed report rewritten from the committed figures' JSON, nothing run
-# or executed (a few seconds). Each report's per-scale tables read every scale's JSON, so after the
-# figures of one scale change, all five change (tests/figures/test_report.py checks they agree).
+# or executed (a few seconds): the main report, then each scale's own. Each scale's report reads
+# every scale's JSON, so after the figures of one scale change, all of them change
+# (tests/figures/test_report.py checks they agree).
 reports: | $(STAMP)
-	$(PY) -m tiltpile report --figures figures --out paper/REPRODUCTION.md
+	$(PY) -m tiltpile report --root figures --out paper/REPRODUCTION.md
+	$(PY) -m tiltpile docs
+	$(PY) -m tiltpile report --figures figures --out figures/REPRODUCTION.md
 	@set -e; for s in $(REPORT_SCALES); do \
 	  $(PY) -m tiltpile report --figures figures/$$s --out figures/$$s/REPRODUCTION.md; done
 

@@ -506,7 +506,7 @@ def test_the_scale_table_gives_many_angles_as_a_range_and_their_median(tmp_path)
     assert "10 of 11 runs: 20.0-22.2, median 21.1; tilts end >= 22" in row
 
 
-COMMITTED_REPORTS = [("figures", "paper/REPRODUCTION.md")] + [   # every scale of the report's
+COMMITTED_REPORTS = [("figures", "figures/REPRODUCTION.md")] + [   # every scale of the report's
     (p.figures, f"{p.figures}/REPRODUCTION.md")
     for p in config.PRESET_TABLE if p.report and p.name != "default"]
 

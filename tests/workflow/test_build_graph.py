@@ -60,7 +60,8 @@ FIG_NOTEBOOKS = sorted((ROOT / "notebooks").glob("fig*.ipynb"))
 NEEDS = {nb.stem: _notebook_code(nb) for nb in FIG_NOTEBOOKS}
 NEEDS["preparation"] = _notebook_code(ROOT / "notebooks" / "preparation.ipynb")
 NEEDS["zcount"] = _closure(["tiltpile.figures.zcount"]) | {Path("src/tiltpile/cli/zcount.py")}
-NEEDS["report"] = _closure(["tiltpile.report"]) | {Path("src/tiltpile/cli/report.py")}
+NEEDS["report"] = (_closure(["tiltpile.report", "tiltpile.report.main", "tiltpile.report.blocks"])
+                   | {Path("src/tiltpile/cli/report.py")})
 SCALE_JSON = [Path("figures/smoke/fig2_avalanche_criterion.json"),
               Path("figures/default-fresh/fig2_avalanche_criterion.json"),
               Path("figures/default-fresh/fig6_cluster_stability.json"),
@@ -122,6 +123,7 @@ def tree(tmp_path_factory) -> Path:
     make("notebooks/executed/preparation/.executed", t2, "")
     make("notebooks/executed/preparation/.zcount", t2, "")
     make("paper/REPRODUCTION.md", t3, "")
+    make("figures/REPRODUCTION.md", t3, "")
     return d
 
 

@@ -67,11 +67,15 @@ def test_the_makefile_and_the_report_read_the_same_scales():
 
 
 def test_the_readme_and_the_cli_doc_list_the_presets_of_the_table():
-    readme = _table_rows(ROOT / "README.md", "## Presets")
-    assert [r[0] for r in readme] == list(config.PRESETS)
-    assert {r[0]: r[3] for r in readme} == {p.name: str(p.runs) for p in config.PRESET_TABLE}
-    assert {r[0]: r[1] for r in readme} == {p.name: str(config.load(p.name).scene.n)
-                                            for p in config.PRESET_TABLE}
+    from tiltpile.report.blocks import presets
+
+    readme = presets(ROOT / "figures")        # the README's table (a generated block) is made of these
+    assert [r["name"] for r in readme] == list(config.PRESETS)
+    assert {r["name"]: r["runs"] for r in readme} == {p.name: p.runs for p in config.PRESET_TABLE}
+    assert {r["name"]: r["grains"] for r in readme} == {p.name: config.load(p.name).scene.n
+                                                        for p in config.PRESET_TABLE}
+    assert {r["name"]: r["engine"] for r in readme} == {
+        p.name: "DEM" if config.load(p.name).dem is not None else "CD" for p in config.PRESET_TABLE}
     cli = _table_rows(ROOT / "docs" / "cli.md", "## Presets")
     assert [r[0] for r in cli] == list(config.PRESETS)
     assert {r[0]: r[1] for r in cli} == {p.name: str(config.load(p.name).scene.n)

@@ -13,6 +13,12 @@ numbers and returns (our value as text, verdict, note).
 
 One concern per module; the names of ``__all__`` import from ``tiltpile.report``:
 
+- :mod:`.main`: the main report, ``paper/REPRODUCTION.md`` (``tiltpile report`` without
+  ``--figures``): the paper's scale first with every axis beside it, rendered from data by the
+  Jinja2 template ``templates/main.md.j2``;
+- :mod:`.blocks`: the generated blocks of the README and the docs (``tiltpile docs``), rendered by
+  the templates ``templates/readme_*.md.j2`` and ``templates/presets_*.md.j2``;
+
 - :mod:`.judging`: what a claim and its rule are, the four verdicts, and the helpers that read and
   print the numbers (shared by the judges and the tables);
 - :mod:`.paper`: the paper's claims (Figs. 1-6, the avalanche angle), their judges and rules;

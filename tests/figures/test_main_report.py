@@ -1,0 +1,104 @@
+"""The main report, paper/REPRODUCTION.md: the paper's scale first, every axis beside it, short
+enough to read in minutes, and what the committed figures' JSON gives."""
+
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+from tiltpile.report import main as rm
+from tiltpile.report.claims import CLAIMS
+from tiltpile.report.document import judge_all, load_figures
+from tiltpile.report.judging import AGREES, DISAGREES, INCONCLUSIVE
+
+ROOT = Path(__file__).resolve().parents[2]
+MAIN = ROOT / "paper" / "REPRODUCTION.md"
+
+
+def test_the_committed_main_report_is_what_the_committed_json_gives():
+    assert MAIN.read_text() == rm.render(ROOT / "figures")
+
+
+def test_the_main_report_is_short_and_its_first_table_is_the_papers_scale():
+    lines = MAIN.read_text().splitlines()
+    assert len(lines) < 250
+    assert max(len(x) for x in lines) < 400
+    first = next(i for i, x in enumerate(lines) if x.startswith("|"))
+    assert first < 15                                          # on the first screen
+    head = [c.strip() for c in lines[first].strip("|").split("|")]
+    assert head[:4] == ["claim", "paper", "ours", "verdict"]
+    assert {"1000 grains", "definitions: best / worst", "DEM 4000"} <= set(head)
+    # every claim, in order, with the paper-scale verdict its judge returns
+    paper = judge_all(load_figures(ROOT / "figures" / "paper"), CLAIMS)
+    rows = lines[first + 2:first + 2 + len(CLAIMS)]
+    for k, (row, (c, _, verdict, _, _)) in enumerate(zip(rows, paper)):
+        cells = [x.strip() for x in row.strip("|").split("|")]
+        assert cells[0] == f"{k + 1}. {c.text}" and cells[3].strip("*") == verdict
+
+
+def test_the_context_is_the_judges_data():
+    ctx = rm.context(ROOT / "figures")
+    paper = judge_all(load_figures(ROOT / "figures" / "paper"), CLAIMS)
+    assert [r["key"] for r in ctx["rows"]] == [c.key for c in CLAIMS]
+    assert [r["verdict"] for r in ctx["rows"]] == [v for _, _, v, _, _ in paper]
+    n_paper = sum(1 for r in ctx["rows"] if not r["beyond"])
+    assert sum(ctx["counts"].values()) == n_paper == ctx["n_paper_claims"]
+    small = judge_all(load_figures(ROOT / "figures"), CLAIMS)
+    assert [r["small"] for r in ctx["rows"]] == [v for _, _, v, _, _ in small]
+    # the best and worst definition are the extremes of the study's verdicts
+    d4 = ctx["definitions"]["4000"]
+    for r in ctx["rows"]:
+        got = set(d4["verdicts"][r["key"]].values())
+        e = r["definitions"]
+        assert e["best"][0] == min(got, key=rm._RANK.get) and e["worst"][0] == max(got, key=rm._RANK.get)
+
+
+def test_headline_keeps_the_number_and_drops_the_asides():
+    assert rm.headline("first onset 14.8 [13.9, 15.4] deg (mean [95% CI], 50 runs; range 4.9-18.6)") \
+        == "first onset 14.8 [13.9, 15.4] deg"
+    assert rm.headline("BIC(1) - BIC(2) = 8; 14% of frames (x (y))") == "BIC(1) - BIC(2) = 8"
+    assert rm.headline("") == ""
+
+
+def test_extremes_pick_the_best_and_the_worst_definition():
+    labels = {"a": "A", "b": "B", "c": "C"}
+    e = rm._extremes({"a": DISAGREES, "b": AGREES, "c": INCONCLUSIVE}, labels)
+    assert e == {"best": (AGREES, ["B"]), "worst": (DISAGREES, ["A"]), "n": 3}
+    assert rm._extremes({"a": "not measured"}, labels) is None
+
+
+def test_without_the_papers_figures_nothing_is_written(tmp_path):
+    (tmp_path / "figures").mkdir()
+    out = tmp_path / "REPRODUCTION.md"
+    with pytest.raises(FileNotFoundError, match="make figures PRESET=paper"):
+        rm.write_main_report(tmp_path / "figures", out)
+    assert not out.exists()
+
+
+def test_the_main_report_follows_the_json(tmp_path):
+    """A verdict changed at the paper's scale changes the first table's row and the counts."""
+    root = tmp_path / "figures"
+    shutil.copytree(ROOT / "figures" / "paper", root / "paper",
+                    ignore=shutil.ignore_patterns("records", "*.png", "*.md"))
+    f = root / "paper" / "fig2_avalanche_criterion.json"
+    doc = json.loads(f.read_text())
+    doc["numbers"]["z_quiet_run_mean"] = 3.5
+    doc["numbers"]["z_quiet_run_mean_ci_low"], doc["numbers"]["z_quiet_run_mean_ci_high"] = 3.45, 3.55
+    f.write_text(json.dumps(doc))
+    ctx = rm.context(root)
+    assert next(r for r in ctx["rows"] if r["key"] == "z_mean")["verdict"] == AGREES
+    before = rm.context(ROOT / "figures")["counts"]
+    assert ctx["counts"][AGREES] == before[AGREES] + 1
+    text = rm.render(root)
+    assert "3.500 [3.450, 3.550]" in text
+    assert "not run" in text            # the axes without their figures say so
+
+
+def test_report_on_one_scale_needs_its_out(tmp_path):
+    r = subprocess.run([sys.executable, "-m", "tiltpile", "report", "--figures", "figures/paper"],
+                       cwd=ROOT, capture_output=True, text=True)
+    assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
+    assert "--out" in r.stderr
