@@ -83,7 +83,13 @@ def _definitions_axis(figures_dir, claims) -> dict:
     v = _definitions.verdicts(doc, claims)
     labels = {d["key"]: d["label"] for d in doc["definitions"]}
     per_claim = {c.key: {dk: row[c.key][1] for dk, row in v.items() if c.key in row} for c in claims}
-    return {"piles": len(doc.get("seeds") or []) or doc.get("n_runs"),
+    ours = v.get(_definitions.OURS, {})
+    breaks = {labels[dk]: [c.text for c in claims if c.key in row and c.key in ours
+                           and ours[c.key][1] == AGREES and row[c.key][1] != AGREES]
+              for dk, row in v.items()}
+    seeds = sorted(doc.get("seeds") or [])
+    return {"piles": len(seeds) or doc.get("n_runs"), "seeds": _definitions._seeds(seeds) if seeds else "",
+            "breaks": breaks,
             "labels": labels, "order": [d["key"] for d in doc["definitions"]],
             "verdicts": per_claim,
             "extremes": {k: _extremes(d, labels) for k, d in per_claim.items()}}
@@ -208,9 +214,9 @@ def context(root="figures", claims: list[Claim] | None = None) -> dict:
     big_dem = [e for e in engines if e["grains"] == paper_doc.get("n_grains")]
     small_dem = [e for e in engines if e["grains"] != paper_doc.get("n_grains")]
     rows = []
-    for c in claims:
+    for i, c in enumerate(claims):
         ours, verdict, note = paper[c.key]
-        rows.append({"key": c.key, "text": c.text, "paper": c.paper, "beyond": c.paper == BEYOND,
+        rows.append({"n": i + 1, "key": c.key, "text": c.text, "paper": c.paper, "beyond": c.paper == BEYOND,
                      "ours": ours, "headline": headline(ours), "verdict": verdict, "note": note,
                      "rule": RULES.get(c.key), "small": small.get(c.key, (None, MISSING))[1],
                      "definitions": defs["4000"].get("extremes", {}).get(c.key),
