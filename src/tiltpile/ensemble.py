@@ -94,7 +94,7 @@ POLL = 0.25  # [s] between looks at finished futures and start/progress events
 # (20 ms), system and memory monitors (0.5 s, 0.1 s) and work stealing (the scheduler queues
 # these root tasks, worker-saturation 1.1) cost CPU and buy nothing. With the defaults the
 # client and a worker running a 20 s task spent 2.3 s of CPU on them, with these 0.3 s (the
-# study bench.dask_overhead, kept at f4398d3; docs/performance-log.md, "dask's housekeeping").
+# study bench.dask_overhead, kept at f4398d3; notes/performance-log.md, "dask's housekeeping").
 QUIET_DASK = {"distributed.worker.profile.enabled": False,
               "distributed.admin.tick.interval": "1s",
               "distributed.admin.system-monitor.interval": "5s",

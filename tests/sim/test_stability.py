@@ -238,7 +238,7 @@ def test_iteration_cap_in_an_avalanche():
     d (+34%). With the interleaved sweep this flow hardly depends on the cap down to ~50 sweeps
     (300: 1.181e-3, 100: 1.167e-3, 50: 1.277e-3, 20: 1.338e-3, 10: 1.425e-3 d); with the forward
     sweep, the default before, 50 sweeps already moved its pile 1.9x further. (At the paper
-    scale tol is not reached even at 20 000 sweeps while the pile flows: docs/performance-log.md, "What
+    scale tol is not reached even at 20 000 sweeps while the pile flows: notes/performance-log.md, "What
     still costs".)"""
     cfg = config.load("smoke", overrides=["protocol.checkpoint_every=1"])
     n = cfg.scene.n

@@ -1,7 +1,7 @@
 """Critical clusters: connected groups of grains carrying fully mobilized contacts.
 
-Definition (paper, Fig. 3 top; DESIGN.md)
------------------------------------------
+Definition (the paper's, from its text and Fig. 3, and ours: docs/method.md, "Critical clusters")
+-----------------------------------------------------------------------------------------------
 * A grain is *critical* if it has at least one fully mobilized active contact (with a grain, a
   fixed grain or a wall). Only grains allowed by ``include`` (default: all mobile grains) can be
   critical; fixed grains never are.

@@ -1,5 +1,5 @@
 """Measurements: what the simulator costs and how accurate it is. The results, dated, are in
-``docs/performance-log.md`` (summarized in ``docs/performance.md``); ``make bench`` regenerates ``figures/performance/``.
+``notes/performance-log.md`` (summarized in ``docs/performance.md``); ``make bench`` regenerates ``figures/performance/``.
 
 Every module runs as ``python -m tiltpile.bench.<name>`` through ``main(argv)`` and measures
 nothing when imported (``python -m tiltpile.bench`` lists them, from the package itself):
@@ -22,7 +22,7 @@ nothing when imported (``python -m tiltpile.bench`` lists them, from the package
 These are the tools in use. The finished studies (``coarse``, ``settle``, ``flow_caps``,
 ``precursor_caps``, ``store_filters``, ``dask_overhead``, ``ke_threshold``) left the package
 after f4398d3, which holds them with their tests; docs/performance.md ("How to measure") says
-how to run one there, and each entry of docs/performance-log.md gives its command.
+how to run one there, and each entry of notes/performance-log.md gives its command.
 (``tests/bench/test_listing.py`` keeps this table equal to the package's modules.)
 
 Measurement code sits beside the command line: it imports ``config``, ``sim``, ``store`` and

@@ -14,7 +14,7 @@ over the runs with its standard error, and the difference from the reference's w
 t-test (two-sided p); and the fraction of avalanching frames. Different
 settings usually deposit different piles, so the comparison is between ensembles, not run by
 run: with ~6 runs and a seed-to-seed spread of ~2 deg only shifts of 2-3 deg stand out.
-docs/performance-log.md ("Speed and accuracy") records what it measured (time step and tolerance at the default scale).
+notes/performance-log.md ("Speed and accuracy") records what it measured (time step and tolerance at the default scale).
 """
 from __future__ import annotations
 

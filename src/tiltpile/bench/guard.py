@@ -15,7 +15,7 @@ seconds per run, with the 1 and 2 sigma lines: a setting is acceptable where it 
 for every number, and worth it where it sits left of the reference.
 
 Run times come from the manifests: ensembles that ran side by side on a shared machine are
-comparable only roughly; ``docs/performance-log.md`` records the conditions of each measurement.
+comparable only roughly; ``notes/performance-log.md`` records the conditions of each measurement.
 """
 from __future__ import annotations
 

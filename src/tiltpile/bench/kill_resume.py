@@ -26,7 +26,7 @@ log (``store.framelog``) a kill in the middle of an HDF5 write of the ``.part`` 
 unreadable; now the ``.part`` is only ever appended to, and the run file is built from it at
 the end under another name.
 
-docs/performance-log.md ("The paper ensemble landed at forty runs; kills mid-write") records what
+notes/performance-log.md ("The paper ensemble landed at forty runs; kills mid-write") records what
 the HDF5 ``.part`` measured; docs/faults.md what the frame log does.
 """
 from __future__ import annotations

@@ -38,7 +38,7 @@ Coulomb cone. omega = 1 is the plain NLGS (bit for bit). The first sweep of ever
 (a lone contact, e.g. a disk landing on the floor, is then solved exactly in one sweep instead of
 oscillating towards it by factors 1 - omega). In a pile the forces relax diffusively under
 Gauss-Seidel; omega > 1 shortens that, and omega >= 1.7 can oscillate between sticking and
-sliding states (what it gains: ``docs/performance-log.md``, "Optional SOR").
+sliding states (what it gains: ``notes/performance-log.md``, "Optional SOR").
 
 Pruned sweeps (``prune``; ``solver.prune``, on by default). Many candidate contacts are open
 with a gap that nothing in the pile closes within the step (u_n + b > PRUNE_MARGIN); their local
@@ -50,7 +50,7 @@ left-out contacts closes during the step (``tests/sim/test_pruned_sweeps.py``). 
 contact that would overlap at the end is caught and the step goes on with full sweeps; one that
 closes and opens again in between is not. Either way the result is as converged, but the iterates
 differ from the full sweeps' from then on. What it saves and where it was checked:
-``docs/performance-log.md``, "Pruned sweeps".
+``notes/performance-log.md``, "Pruned sweeps".
 
 Convergence: the relative L2 change of the impulses over one sweep, divided by omega,
     r = sqrt(sum |p^k - p^(k-1)|^2 / sum |p^k|^2) / omega,
@@ -90,7 +90,7 @@ OPEN, STICK, SLIDE = 0, 1, 2
 # step that has not converged sweeps only the contacts that can act, with a full sweep every
 # PRUNE_EVERY sweeps and as the last one at the cap. PRUNE_MARGIN [d / sqrt(d/g)]: an open contact
 # is left out when u_n + b > PRUNE_MARGIN (a gap of more than 0.01 d that is not closing, at
-# dt = 0.01; 100 g dt). Why 1.0 and not 0.1: docs/performance-log.md, "Pruned sweeps".
+# dt = 0.01; 100 g dt). Why 1.0 and not 0.1: notes/performance-log.md, "Pruned sweeps".
 PRUNE_AFTER = 20
 PRUNE_EVERY = 100
 PRUNE_MARGIN = 1.0

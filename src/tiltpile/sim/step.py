@@ -29,7 +29,7 @@ Overlaps up to ``slop`` are left alone (b = 0) and deeper ones are pushed back t
 to zero -- the dead zone of Box2D's "linear slop" (E. Catto) applied to Moreau-Jean's gap term;
 overlaps then stay <= ~1.1 slop (tests/sim/test_overlap_slop.py). The price is a small drift of a
 pile below its failure angle, which a tighter tol buys back. What it saves and costs, measured:
-``docs/performance-log.md``, "Overlap slop".
+``notes/performance-log.md``, "Overlap slop".
 
 Energy balance. With perfectly inelastic contacts, Coulomb friction and a converged solver the
 change of kinetic energy over a step is at most the work of gravity: with v' = v + dt g + M^-1 H p,
