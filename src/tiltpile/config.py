@@ -122,11 +122,11 @@ class SolverConfig:
     slide_cap_ke: float = _f(1e-3, lo=0.0, lo_open=True,
                          doc="kinetic energy per mobile grain [m g d] above which max_iter_slide applies")
     # interleaved: the forward (key) order with no body twice within 8 places (sim/solver.py);
-    # why it is the default: docs/performance-log.md ("Sweep order")
+    # why it is the default: notes/performance-log.md ("Sweep order")
     sweep: str = _f("interleaved", choices=("alternating", "random", "forward", "interleaved"),
                     doc="contact order of the NLGS sweeps")
     # Projected SOR (sim/solver.py); relax 1 with sweep = "random" is the plain NLGS reference.
-    # Why the default stays 1: docs/performance-log.md ("Numbers in the configuration's comments")
+    # Why the default stays 1: notes/performance-log.md ("Numbers in the configuration's comments")
     relax: float = _f(1.0, lo=0.0, lo_open=True, hi=2.0, hi_open=True,
                       doc="over-relaxation factor omega of the local solves (projected SOR; "
                           "1 = plain NLGS)")
@@ -200,7 +200,7 @@ class HealthConfig:
     is capped nearly everywhere; the energy limits catch a solver that is merely loose (and, in
     small piles, overlaps pushed out in one step: what a too large dt produces). Missed-contact
     steps have no limit of their own: a contact actually missed shows up as an overlap one step
-    later. What the presets measure against these defaults: docs/performance-log.md ("Health limits
+    later. What the presets measure against these defaults: notes/performance-log.md ("Health limits
     against the presets").
     """
 
@@ -470,6 +470,26 @@ def from_dict(data: dict[str, Any], base: Config | None = None) -> Config:
     return cfg
 
 
+#: the fewest DEM steps a binary collision may last (a stiffness whose contact time spans fewer
+#: is refused before a run: the integration of the Hookean spring is then not resolved)
+DEM_MIN_CONTACT_STEPS = 30
+
+
+def dem_contact_time(cfg: Config) -> float:
+    """The duration of a binary collision of the two smallest grains (diameter 1 - p, mass
+    pi d^2 / 4 each, reduced mass half of it) under the DEM's damped Hookean normal force:
+    t_c = sqrt(m_eff / k_n) sqrt(pi^2 + ln(e)^2) for restitution e (the damped oscillator's
+    half period; e.g. Schwager & Poeschel, Phys. Rev. E 57, 650 (1998))."""
+    d = 1.0 - cfg.scene.polydispersity
+    m_eff = 0.5 * math.pi * d * d / 4.0
+    return math.sqrt(m_eff / cfg.dem.kn) * math.sqrt(math.pi ** 2 + math.log(cfg.dem.restitution) ** 2)
+
+
+def dem_contact_steps(cfg: Config) -> float:
+    """How many of the largest DEM steps (dem.dt) a collision of the two smallest grains lasts."""
+    return dem_contact_time(cfg) / cfg.dem.dt
+
+
 def _check_consistency(cfg: Config) -> None:
     if cfg.scene.box_length < 2 * (1 + cfg.scene.polydispersity) * cfg.scene.fill_spacing:
         raise ConfigError(
@@ -484,6 +504,13 @@ def _check_consistency(cfg: Config) -> None:
         raise ConfigError(f"protocol.pretilt_per_step_deg = {cfg.protocol.pretilt_per_step_deg!r} "
                           "is set but there is no history (protocol.pretilt_deg or "
                           "protocol.cycles/theta_rev_deg)")
+    if cfg.dem is not None:
+        steps = dem_contact_steps(cfg)
+        if steps < DEM_MIN_CONTACT_STEPS:
+            raise ConfigError(
+                f"dem.dt = {cfg.dem.dt!r} is too long for dem.kn = {cfg.dem.kn!r}: a collision of the "
+                f"two smallest grains lasts {steps:.1f} steps, fewer than {DEM_MIN_CONTACT_STEPS}; "
+                f"give dem.dt <= {dem_contact_time(cfg) / DEM_MIN_CONTACT_STEPS:.3g}")
     h = cfg.health
     for warn, stop in (("overlap_warn", "overlap_stop"), ("energy_warn", "energy_stop"),
                        ("cap_hit_warn_fraction", "cap_hit_stop_fraction")):

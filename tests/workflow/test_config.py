@@ -200,3 +200,22 @@ def test_the_default_preset_is_default_fresh_with_deboeufs_history():
         default.protocol, pretilt_deg=(), pretilt_per_step_deg=0.0)) == fresh
     assert default.hash().startswith("f822c0f99af7")  # the committed default figures' runs
     assert fresh.hash().startswith("fa89eabe2003")    # figures/default-fresh's runs
+
+
+def test_a_dem_stiffness_whose_collision_spans_too_few_steps_is_refused():
+    """4 k_n at the default DEM step: a collision of the two smallest grains would last ~27 steps,
+    fewer than 30; with the step halved it lasts as many as at k_n (t_c ~ 1 / sqrt(k_n))."""
+    import math
+
+    base = config.load("default-dem")
+    n0 = config.dem_contact_steps(base)
+    assert n0 >= config.DEM_MIN_CONTACT_STEPS
+    with pytest.raises(config.ConfigError, match=r"dem.dt = 8e-05 is too long for dem.kn = 800000.0"):
+        config.load("default-dem", None, [f"dem.kn={4 * base.dem.kn}"])
+    stiff = config.load("default-dem", None, [f"dem.kn={4 * base.dem.kn}", f"dem.dt={base.dem.dt / 2}"])
+    assert math.isclose(config.dem_contact_steps(stiff), n0)
+    # the formula: the damped oscillator's half period (e = 1: pi sqrt(m_eff / k))
+    undamped = config.load("default-dem", None, ["dem.restitution=1.0"])
+    d = 1 - undamped.scene.polydispersity
+    assert math.isclose(config.dem_contact_time(undamped),
+                        math.pi * math.sqrt(math.pi * d * d / 8 / undamped.dem.kn))

@@ -22,8 +22,11 @@ from pathlib import Path
 from tiltpile import config as cfgmod
 from tiltpile.outputs import replaced_whole
 
-#: the documents that hold generated blocks, from the repository's root
-FILES = ("README.md", "docs/presets.md")
+#: the documents that hold generated blocks, from the repository's root, and the prefix of the
+#: templates their blocks are rendered from (``templates/<prefix>_<name>.md.j2``)
+DOCUMENTS = {"README.md": "readme", "docs/presets.md": "presets", "docs/figures.md": "figures",
+             "docs/dem.md": "dem", "docs/performance.md": "performance"}
+FILES = tuple(DOCUMENTS)
 BEGIN = re.compile(r"^<!-- generated: ([a-z0-9_-]+) \(tiltpile docs; do not edit\) -->$")
 END = "<!-- end generated: {name} -->"
 
@@ -64,14 +67,14 @@ def _environment():
 
 
 def render_all(root="figures") -> dict[str, str]:
-    """{block name: its Markdown} of every template ``templates/<name>.md.j2`` whose name starts
-    with a document's stem (``readme_...``, ``presets_...``)."""
+    """{block name: its Markdown} of every template ``templates/<prefix>_<name>.md.j2`` of a
+    document's prefix (``DOCUMENTS``)."""
     from .main import context
 
     env = _environment()
     ctx = {**context(root), "presets": presets(root)}
     names = [n[:-len(".md.j2")] for n in env.list_templates() if n.endswith(".md.j2")
-             and n.split("_")[0] in ("readme", "presets")]
+             and n.split("_")[0] in DOCUMENTS.values()]
     return {n: env.get_template(f"{n}.md.j2").render(**ctx).rstrip("\n") for n in names}
 
 
@@ -109,6 +112,8 @@ def update(repo=".", root="figures", check: bool = False) -> list[Path]:
     changed = []
     for name in FILES:
         p = repo / name
+        if not p.exists():
+            continue
         old = p.read_text()
         new = fill(old, blocks, name)
         if new != old:
