@@ -194,7 +194,7 @@ build-lock: | $(STAMP) check-nb
 # The runs and their observables. Always checked (the ensemble skips finished runs); the stamp
 # lists every run file's name, size and time and changes only when a run does.
 $(DATA)/.runs: FORCE | $(STAMP) check-nb build-lock
-	@test -n "$(RUNS)" || { echo "unknown PRESET=$(PRESET): give RUNS=M"; exit 2; }
+	@test -n "$(RUNS)" || { echo "unknown PRESET=$(PRESET): the presets are $(sort $(patsubst RUNS_%,%,$(filter RUNS_%,$(.VARIABLES)))) (another preset file: give RUNS=M)"; exit 2; }
 ifeq ($(strip $(SET)),)
 	$(PY) -m tiltpile ensemble --preset $(PRESET) --runs $(RUNS) --out $(BASE_DATA) $(ENSEMBLE_ARGS)
 ifneq ($(DATA),$(BASE_DATA))
@@ -245,7 +245,7 @@ ENSEMBLE_COMMIT = $(shell git rev-parse --short=12 HEAD 2>/dev/null)
 ENSEMBLE_CODE = $(DATA)-code/$(ENSEMBLE_COMMIT)
 .PHONY: ensemble
 ensemble: | $(STAMP)
-	@test -n "$(RUNS)" || { echo "unknown PRESET=$(PRESET): give RUNS=M"; exit 2; }
+	@test -n "$(RUNS)" || { echo "unknown PRESET=$(PRESET): the presets are $(sort $(patsubst RUNS_%,%,$(filter RUNS_%,$(.VARIABLES)))) (another preset file: give RUNS=M)"; exit 2; }
 	@test -n "$(ENSEMBLE_COMMIT)" || { echo "make ensemble runs a copy of the committed code: run it in a git checkout"; exit 2; }
 	@test -d $(ENSEMBLE_CODE)/src || { rm -rf $(ENSEMBLE_CODE).tmp && mkdir -p $(ENSEMBLE_CODE).tmp && \
 	  git archive $(ENSEMBLE_COMMIT) src | tar -x -C $(ENSEMBLE_CODE).tmp && mv $(ENSEMBLE_CODE).tmp $(ENSEMBLE_CODE); }
@@ -288,33 +288,12 @@ $(FIG_JSON): $(FIGURES)/%.json: notebooks/%.ipynb src/tiltpile/figures/$$(call f
 	@test -f $@ || { echo "$< did not write $@"; exit 1; }
 	@touch $@
 
-# The report reads (tiltpile.report.inputs) the figures' JSON, Fig. 2's JSON of every scale in
-# it (its table of scales), every figure's JSON of the compared scales (every claim at every
-# scale) and the preparation and <z> studies of the default scale's directory. The scales are
-# config.PRESET_TABLE's (report "fig2" or "claims"; the default scale, figures/, besides these),
-# as are RUNS_<preset> above: make cannot read it, tests/workflow/test_presets.py equates them.
+# A scale's report reads its own figures' JSON (tiltpile.report.inputs); the main report and
+# paper/STUDIES.md read every scale's (below). REPORT_SCALES: the scales with figures of their
+# own below figures/ (config.PRESET_TABLE's report "claims" or "fig2"; tests/workflow/test_presets.py).
 REPORT_SCALES := smoke default-fresh default-dem paper paper-fresh paper-fast
 REPORT_COMPARED := default-fresh default-dem paper paper-fresh
-REPORT_ROOT := $(if $(filter $(REPORT_SCALES),$(notdir $(FIGURES))),$(patsubst %/,%,$(dir $(FIGURES))),$(FIGURES))
-REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json $(FIGURES)/preparation.json \
-                  $(foreach s,$(REPORT_SCALES),$(REPORT_ROOT)/$(s)/fig2_avalanche_criterion.json) \
-                  $(foreach s,/ $(REPORT_COMPARED:%=/%/),$(REPORT_ROOT)$(s)fig*.json) \
-                  $(REPORT_ROOT)/preparation.json $(REPORT_ROOT)/zcount.json \
-                  $(REPORT_ROOT)/definitions.json \
-                  $(REPORT_ROOT)/default-dem/same-piles/same_piles.json \
-                  $(REPORT_ROOT)/paper-fast-dem/same-piles/same_piles.json \
-                  $(REPORT_ROOT)/paper-fast-dem/same-piles/*/fig*.json \
-                  $(REPORT_ROOT)/paper-5x-dem/same-piles/same_piles.json \
-                  $(REPORT_ROOT)/paper-5x-dem/same-piles/*/fig*.json \
-                  $(REPORT_ROOT)/paper-dem/same-piles/same_piles.json \
-                  $(REPORT_ROOT)/paper-dem/same-piles/*/fig*.json \
-                  $(REPORT_ROOT)/study-friction/study.json \
-                  $(REPORT_ROOT)/paper-fast/same-piles/same_piles.json \
-                  $(REPORT_ROOT)/paper-fast/same-piles/*/fig*.json \
-                  $(REPORT_ROOT)/paper-5x/same-piles/same_piles.json \
-                  $(REPORT_ROOT)/paper-5x/same-piles/*/fig*.json \
-                  $(REPORT_ROOT)/paper-fast/definitions.json \
-                  $(REPORT_ROOT)/paper-fast/definitions-all.json)
+REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json)
 $(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli/report.py src/tiltpile/__init__.py \
            src/tiltpile/outputs.py src/tiltpile/paper_values.py | $(STAMP)
 	$(PY) -m tiltpile report --figures $(FIGURES) --out $@
@@ -326,10 +305,12 @@ $(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli
 docs: | $(STAMP)
 	$(PY) -m tiltpile docs
 
-paper/REPRODUCTION.md: $(wildcard figures/fig*.json figures/*.json figures/*/fig*.json figures/*/*.json \
-                         figures/*/same-piles/*.json figures/*/same-piles/*/fig*.json) \
+ALL_REPORT_READS := $(wildcard figures/fig*.json figures/*.json figures/*/fig*.json figures/*/*.json \
+                      figures/*/same-piles/*.json figures/*/same-piles/*/fig*.json)
+paper/REPRODUCTION.md: $(ALL_REPORT_READS) \
                        $(wildcard src/tiltpile/report/*.py src/tiltpile/report/templates/*.j2) | $(STAMP)
 	$(PY) -m tiltpile report --root figures --out $@
+	$(PY) -m tiltpile report --root figures --studies --out paper/STUDIES.md
 
 # `make reports`: every committed report rewritten from the committed figures' JSON, nothing run
 # or executed (a few seconds): the main report, then each scale's own. Each scale's report reads
@@ -337,6 +318,7 @@ paper/REPRODUCTION.md: $(wildcard figures/fig*.json figures/*.json figures/*/fig
 # (tests/figures/test_report.py checks they agree).
 reports: | $(STAMP)
 	$(PY) -m tiltpile report --root figures --out paper/REPRODUCTION.md
+	$(PY) -m tiltpile report --root figures --studies --out paper/STUDIES.md
 	$(PY) -m tiltpile docs
 	$(PY) -m tiltpile report --figures figures --out figures/REPRODUCTION.md
 	@set -e; for s in $(REPORT_SCALES); do \
@@ -531,7 +513,7 @@ STUDY_ARGS = --key '$(KEY)' --values $(foreach v,$(VALUES),'$(v)') --preset $(PR
 .PHONY: study
 study: | $(STAMP)
 	@test -n "$(strip $(KEY))" -a -n "$(strip $(VALUES))" || { echo "make study: give KEY=section.key and VALUES=\"v1 v2 ...\""; exit 2; }
-	@test -n "$(RUNS)" || { echo "unknown PRESET=$(PRESET): give RUNS=M"; exit 2; }
+	@test -n "$(RUNS)" || { echo "unknown PRESET=$(PRESET): the presets are $(sort $(patsubst RUNS_%,%,$(filter RUNS_%,$(.VARIABLES)))) (another preset file: give RUNS=M)"; exit 2; }
 ifeq ($(RECORDS_ONLY),)
 	$(PY) -m tiltpile study $(STUDY_ARGS) --runs-only
 	$(ANALYSIS_ENV) $(PY) -m tiltpile study $(STUDY_ARGS)

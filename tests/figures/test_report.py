@@ -263,11 +263,10 @@ def test_enhancement_names_the_peak_rule_its_numbers_were_computed_with(tmp_path
 
 def test_scales_table_says_not_yet_run(tmp_path):
     _write(tmp_path, [_fig2()])
-    text = report.write_report(tmp_path, tmp_path / "R.md").read_text()
+    text = report.write_studies(tmp_path, tmp_path / "R.md").read_text()
     assert "## The same numbers at every scale" in text
     row = next(line for line in text.splitlines() if line.startswith("| first 2% onset"))
     assert row.count("not yet run") == len(report.SCALES) - 1 and "9.7 [8.1, 10.9]" in row   # all but the default
-    assert "## How each claim is tested" in text
     assert all(c.key in report.RULES for c in report.CLAIMS)
 
 
@@ -316,31 +315,13 @@ def test_preparation_section_counts_runs_quiet_past_the_papers_window(tmp_path):
     assert "above 1.0e-03 (the study's slide_ke)" in text and "Read from their records" not in text
 
 
-def test_theta_m_and_z_verdicts_cite_the_studies(tmp_path):
-    """The theta_m note cites the preparation study per history, the <z> note the counting-rule
-    study, both read from the default scale's figures directory."""
+def test_the_studies_are_read_from_the_default_scales_directory(tmp_path):
+    """The preparation and <z>-counting studies are read from the default scale's figures
+    directory, also for the paper scale's."""
     from tiltpile import report
 
-    def ens(q, n, m):
-        return {"n_runs": n, "n_runs_quiet_past": q, "per_run": {"theta_first_onset": []},
-                "theta_first_onset_mean": m, "theta_first_onset_ci_low": m - 1,
-                "theta_first_onset_ci_high": m + 1}
-
-    prep = {"ensembles": [{"n_grains": 1000}, {"n_grains": 1000}],
-            "numbers": {"reference": "fresh", "ensembles": {"fresh": ens(0, 6, 9.7),
-                                                            "±16° 2 cycles": ens(5, 6, 18.5)}}}
-    (tmp_path / "preparation.json").write_text(json.dumps(prep))
-    cites = report._theta_m_cites(report.load_studies(tmp_path))
-    assert "(1000 grains" in cites and "fresh: 0 of 6 runs quiet to 14.4 deg, first onset 9.7 [8.7, 10.7]" in cites
-    assert "±16° 2 cycles: 5 of 6 runs quiet to 14.4 deg, first onset 18.5 [17.5, 19.5] deg" in cites
-    rule = "f_n>0 walls=in rattlers=out grains=bulk"
-    z = {"ensembles": {"fresh": {"analysis_rule": rule, "table": {rule: {"z": 3.215}},
-                                 "reaches_paper_z": {"force_rule_reaches": False, "first_gap": {
-                                     "walls=in rattlers=out grains=bulk": {"interpolated": 0.0019}}}}}}
-    (tmp_path / "zcount.json").write_text(json.dumps(z))
-    cites = report._z_mean_cites(report.load_studies(tmp_path))
-    assert "no force threshold reaches 3.5" in cites and "fresh 3.215, 3.5 at gap <= 0.0019 d" in cites
-    # the paper scale's report reads the studies of the default scale
+    (tmp_path / "preparation.json").write_text(json.dumps({"numbers": {}}))
+    (tmp_path / "zcount.json").write_text(json.dumps({"ensembles": {}}))
     (tmp_path / "paper").mkdir()
     assert set(report.load_studies(tmp_path / "paper")) == {"preparation", "zcount"}
     assert report.load_studies(tmp_path / "nowhere") == {}
@@ -405,7 +386,7 @@ def test_every_claim_at_every_scale_and_why_a_verdict_changes(tmp_path):
                  preset="paper", n_grains=4000)
     _write(root / "paper", [paper])
     _write(root / "smoke", [_fig2()])
-    text = report.write_report(root, tmp_path / "R.md").read_text()
+    text = report.write_studies(root, tmp_path / "R.md").read_text()
     sec = text.split("## Each claim at every scale")[1].split("\n## ")[0]
     from tiltpile.report.document import COMPARED
     assert "| claim | " + " | ".join(COMPARED) + " |" in sec and "smoke" not in sec
@@ -426,11 +407,9 @@ def test_every_claim_at_every_scale_and_why_a_verdict_changes(tmp_path):
     gap = next(line for line in changed if by["cutoff_in_gap"] in line)
     assert "At default: the gap between our two populations" in gap
     assert "250 grains the 2% cutoff is ~36 contacts" in gap and "At paper" not in gap
-    # the main table's note names the scale of its own figures
-    assert "250 grains the 2% cutoff is ~36 contacts" in text.split("## Notes")[1]
     # a note several scales share is said once, naming them
     _write(root / "default-fresh", [_fig2(lost_bimodality=bm, n_active_mean=1800.0)])
-    text = report.write_report(root, tmp_path / "R.md").read_text()
+    text = report.write_studies(root, tmp_path / "R.md").read_text()
     sec = text.split("## Each claim at every scale")[1].split("\n## ")[0]
     gap = next(line for line in sec.splitlines() if line.startswith(f"- **{by['cutoff_in_gap']}"))
     assert gap.count("the gap between our two populations") == 1
@@ -438,7 +417,7 @@ def test_every_claim_at_every_scale_and_why_a_verdict_changes(tmp_path):
     # one scale alone: no such section
     only = tmp_path / "alone"
     _write(only, [_fig2()])
-    assert "## Each claim at every scale" not in report.write_report(only, tmp_path / "A.md").read_text()
+    assert "## Each claim at every scale" not in report.write_studies(only, tmp_path / "A.md").read_text()
 
 
 def test_what_changes_a_verdict_is_named_scale_or_history(tmp_path):
@@ -460,7 +439,7 @@ def test_what_changes_a_verdict_is_named_scale_or_history(tmp_path):
     _write(root, [scale("default", 1000, "cycled fast", lost_bimodality=bm, **quiet)])
     _write(root / "default-fresh", [scale("default-fresh", 1000, "fresh", lost_bimodality=bm)])
     _write(root / "paper-fresh", [scale("paper-fresh", 4000, "fresh", lost_bimodality=bm)])
-    text = report.write_report(root, tmp_path / "R.md").read_text()
+    text = report.write_studies(root, tmp_path / "R.md").read_text()
     sec = text.split("### What changes with scale and history")[1].split("\n## ")[0]
     by = {c.key: c.text for c in report.CLAIMS}
     assert ("| claim | history: default-fresh → default | history: paper-fresh → paper | "
@@ -472,7 +451,7 @@ def test_what_changes_a_verdict_is_named_scale_or_history(tmp_path):
     assert by["cutoff_in_gap"] not in sec                       # the same verdict everywhere
     assert "also changes the history" not in sec                # default → paper not run
     _write(root / "paper", [scale("paper", 4000, "cycled", lost_bimodality=gap, **quiet)])
-    sec = report.write_report(root, tmp_path / "R.md").read_text().split(
+    sec = report.write_studies(root, tmp_path / "R.md").read_text().split(
         "### What changes with scale and history")[1].split("\n## ")[0]
     assert _row(sec, by["cutoff_in_gap"]).split(" | ")[1:] == [
         "same", "disagrees → agrees", "same", "disagrees → agrees", "not yet run |"]
@@ -489,7 +468,7 @@ def test_the_report_reads_every_figure_of_the_compared_scales(tmp_path):
     _write(root, [_fig2()])
     _write(root / "paper", [_fig2(), _doc("fig5_cluster_sizes", {})])
     _write(root / "smoke", [_fig2(), _doc("fig5_cluster_sizes", {})])
-    read = {p.relative_to(root).as_posix() for p in report.inputs(root)}
+    read = {p.relative_to(root).as_posix() for p in report.root_inputs(root)}
     assert {"fig2_avalanche_criterion.json", "paper/fig2_avalanche_criterion.json",
             "paper/fig5_cluster_sizes.json", "smoke/fig2_avalanche_criterion.json"} <= read
     assert "smoke/fig5_cluster_sizes.json" not in read      # smoke is compared by Fig. 2 only
@@ -501,7 +480,7 @@ def test_the_scale_table_gives_many_angles_as_a_range_and_their_median(tmp_path)
     an even count: the mean of the middle two), not every angle."""
     angles = [20.0 + 0.25 * k for k in range(10)] + [None]
     _write(tmp_path, [_fig2(theta_avalanche_per_run=angles)])
-    text = report.write_report(tmp_path, tmp_path / "R.md").read_text()
+    text = report.write_studies(tmp_path, tmp_path / "R.md").read_text()
     row = _row(text, "avalanche angle: first large slide (deg)")
     assert "10 of 11 runs: 20.0-22.2, median 21.1; tilts end >= 22" in row
 
@@ -567,21 +546,14 @@ def test_the_engines_section_says_which_disagreements_both_engines_share(tmp_pat
     root = tmp_path / "figures"
     cd = dict(_fig2(theta_m_min=7.0, theta_m_max=11.7), preset="default", n_grains=1000)
     _write(root, [cd])
-    text = report.write_report(root, tmp_path / "R.md").read_text()
+    text = report.write_studies(root, tmp_path / "R.md").read_text()
     assert "## Same piles, another model" not in text
     dem = dict(_fig2(theta_m_min=7.0, theta_m_max=16.0), preset="default-dem", n_grains=1000,
                engine="lammps")
     _write(root / "default-dem", [dem])
-    text = report.write_report(root, tmp_path / "R.md").read_text()
+    text = report.write_studies(root, tmp_path / "R.md").read_text()
     sec = text.split("## Same piles, another model")[1].split("\n## ")[0]
     by = {c.key: c.text for c in report.CLAIMS}
-    # each disagreeing claim's note says what the second engine gives on the same piles
-    notes = {line.split("** (")[0][4:]: line for line in
-             text.split("## Notes")[1].split("\n## ")[0].splitlines() if line.startswith("- **")}
-    n = dem.get("n_runs")
-    assert f"disagrees at 1000 grains (default's {n} piles)." in notes[by["z_mean"]]
-    assert f"agrees at 1000 grains (default's {n} piles)." in notes[by["theta_m"]]
-    assert all(("The second engine" in line) == ("(disagrees)" in line) for line in notes.values())
     both = next(x for x in sec.splitlines() if x.startswith("- **In both engines**"))
     cd_only = next(x for x in sec.splitlines() if x.startswith("- **In Contact Dynamics only**"))
     assert by["z_mean"] in both and by["theta_m"] not in both
@@ -591,13 +563,13 @@ def test_the_engines_section_says_which_disagreements_both_engines_share(tmp_pat
     study = root / "default-dem" / "same-piles" / "same_piles.json"
     study.parent.mkdir(parents=True)
     study.write_text(json.dumps(_same_piles_study()))
-    sec = report.write_report(root, tmp_path / "R.md").read_text().split(
+    sec = report.write_studies(root, tmp_path / "R.md").read_text().split(
         "## Same piles, another model")[1].split("\n## ")[0]
     assert "| first 2% onset (deg) | 11.00 | 12.00 | +1.00 [+1.00, +1.00] (3) |" in sec
     assert "| <z> of the quiet frames | 11.000 | 11.050 | +0.050 [+0.050, +0.050] (3) |" in sec
     assert "4 of 30 numbers with a jackknife error differ by more than 2 combined" in sec
-    assert root / "default-dem" / "fig2_avalanche_criterion.json" in report.inputs(root)
-    assert study in report.inputs(root)
+    assert root / "default-dem" / "fig2_avalanche_criterion.json" in report.root_inputs(root)
+    assert study in report.root_inputs(root)
 
 
 def test_the_engines_section_at_4000_grains_judges_each_sides_figures_of_the_pair(tmp_path,
@@ -613,11 +585,11 @@ def test_the_engines_section_at_4000_grains_judges_each_sides_figures_of_the_pai
     _write(root / "default-dem", [dict(_fig2(), preset="default-dem", n_grains=1000)])
 
     def sub():
-        text = report.write_report(root, tmp_path / "R.md").read_text()
+        text = report.write_studies(root, tmp_path / "R.md").read_text()
         return text.split("### At 4000 grains\n")[1].split("\n#")[0]
     assert "is not yet computed" in sub() and "make engines ENGINES=paper-fast" in sub()
     # the paper's own history (paper-dem against the committed paper records): its own subsection
-    text = report.write_report(root, tmp_path / "R.md").read_text()
+    text = report.write_studies(root, tmp_path / "R.md").read_text()
     own = text.split("### At 4000 grains, with paper's history\n")[1].split("\n#")[0]
     assert ("(preset `paper-dem`: 3 of `paper`'s piles, cycled twice to +-16 deg at the ramp's "
             "rate, in the DEM, several hours each) is not yet computed") in own
@@ -646,8 +618,8 @@ def test_the_engines_section_at_4000_grains_judges_each_sides_figures_of_the_pai
     cd_only = next(x for x in sec.splitlines() if x.startswith("- **In Contact Dynamics only**"))
     both = next(x for x in sec.splitlines() if x.startswith("- **In both engines**"))
     assert by["theta_m"] in cd_only and by["z_mean"] in both
-    assert big / "same_piles.json" in report.inputs(root)
-    assert big / "paper-fast-dem" / "fig2_avalanche_criterion.json" in report.inputs(root)
+    assert big / "same_piles.json" in report.root_inputs(root)
+    assert big / "paper-fast-dem" / "fig2_avalanche_criterion.json" in report.root_inputs(root)
     study.update(seeds=[0, 1, 2], n_with_error=30, n_moved=4)
     (big / "same_piles.json").write_text(json.dumps(study))
     sec = sub()
@@ -690,12 +662,12 @@ def test_the_friction_section_answers_mohr_coulomb_and_sets_the_literature_besid
     for a study of another key; the report reads the file (its inputs, the Makefile's)."""
     root = tmp_path / "figures"
     _write(root, [dict(_fig2(), preset="default", n_grains=1000)])
-    assert "## Friction" not in report.write_report(root, tmp_path / "R.md").read_text()
+    assert "## Friction" not in report.write_studies(root, tmp_path / "R.md").read_text()
     study = root / "study-friction" / "study.json"
     study.parent.mkdir(parents=True)
     study.write_text(json.dumps(_friction_study()))
-    assert study in report.inputs(root)
-    sec = report.write_report(root, tmp_path / "R.md").read_text().split("\n## Friction")[1]
+    assert study in report.root_inputs(root)
+    sec = report.write_studies(root, tmp_path / "R.md").read_text().split("\n## Friction")[1]
     sec = sec.split("\n## ")[0]
     assert "**The paper's Mohr-Coulomb reading does not survive a change of friction in our " \
            "piles:** the clusters' orientation does not move with friction (slope 0.10 " \
@@ -714,15 +686,15 @@ def test_the_friction_section_answers_mohr_coulomb_and_sets_the_literature_besid
         else:
             v["numbers"]["theta_avalanche"]["n_runs_with"] = 1
     study.write_text(json.dumps(doc))
-    sec = report.write_report(root, tmp_path / "R.md").read_text().split("\n## Friction")[1]
+    sec = report.write_studies(root, tmp_path / "R.md").read_text().split("\n## Friction")[1]
     assert "| ~21 deg | none: no pile slid within the ramp (mu = 0.5) |" in sec
     assert "the avalanche angle is out of the ramp's reach: 1 of 9 piles slid before its end" in sec
     assert "n/a deg" not in sec
     study.write_text(json.dumps(_friction_study(slope=(0.9, 0.6, 1.3), verdict="consistent")))
-    text = report.write_report(root, tmp_path / "R.md").read_text()
+    text = report.write_studies(root, tmp_path / "R.md").read_text()
     assert "**The paper's Mohr-Coulomb reading survives a change of friction in our piles:**" in text
     study.write_text(json.dumps(_friction_study(key="scene.polydispersity")))
-    assert "## Friction" not in report.write_report(root, tmp_path / "R.md").read_text()
+    assert "## Friction" not in report.write_studies(root, tmp_path / "R.md").read_text()
 
 
 def test_the_history_rate_section_decides_against_what_chance_moves(tmp_path):
@@ -734,7 +706,7 @@ def test_the_history_rate_section_decides_against_what_chance_moves(tmp_path):
 
     root = tmp_path / "figures"
     _write(root, [dict(_fig2(), preset="default", n_grains=1000)])
-    assert "## The history at 10x" not in report.write_report(root, tmp_path / "R.md").read_text()
+    assert "## The history at 10x" not in report.write_studies(root, tmp_path / "R.md").read_text()
     fast = root / "paper-fast" / "same-piles"
     study = dict(_same_piles_study(), ref="paper", label="paper-fast", n_moved=20,
                  n_with_error=149, moved=[{"figure": "fig3_clusters_failure", "key": "n_peaks"},
@@ -750,11 +722,11 @@ def test_the_history_rate_section_decides_against_what_chance_moves(tmp_path):
                      cost={"sweeps_per_run": 38.8e6, "seconds_per_run": 6500.0, "runs_timed": 6})
     _write(fast / "paper", [paper_side])
     _write(fast / "paper-fast", [fast_side])
-    read = report.inputs(root)
+    read = report.root_inputs(root)
     assert fast / "same_piles.json" in read and fast / "paper-fast" / "fig2_avalanche_criterion.json" in read
 
     def section():
-        return report.write_report(root, tmp_path / "R.md").read_text().split(
+        return report.write_studies(root, tmp_path / "R.md").read_text().split(
             "## The history at 10x the ramp's rate")[1].split("\n## ")[0]
 
     sec = section()
@@ -783,7 +755,7 @@ def test_the_history_rate_section_decides_against_what_chance_moves(tmp_path):
     assert hr.decision(dict(study, n_moved=30), 0) == "fails"
     assert hr.decision(dict(study, n_moved=24), 0) == "passes"
     assert hr.decision(dict(study, null=None), 0) == "open"
-    assert "## The history at 5x" not in report.write_report(root, tmp_path / "R.md").read_text()
+    assert "## The history at 5x" not in report.write_studies(root, tmp_path / "R.md").read_text()
 
     # paper-5x (issue 53's next step): its own section beside paper-fast's, at its own rate,
     # against its own 8 seeds, with its own side's figures and cost
@@ -793,8 +765,8 @@ def test_the_history_rate_section_decides_against_what_chance_moves(tmp_path):
                                                           n_moved=3)))
     _write(five / "paper", [paper_side])
     _write(five / "paper-5x", [dict(fast_side, preset="paper-5x", cost={"sweeps_per_run": 60.1e6})])
-    assert five / "paper-5x" / "fig2_avalanche_criterion.json" in report.inputs(root)
-    text = report.write_report(root, tmp_path / "R.md").read_text()
+    assert five / "paper-5x" / "fig2_avalanche_criterion.json" in report.root_inputs(root)
+    text = report.write_studies(root, tmp_path / "R.md").read_text()
     assert "## The history at 10x the ramp's rate: paper-fast against paper" in text
     five_sec = text.split("## The history at 5x the ramp's rate: paper-5x against paper")[1].split("\n## ")[0]
     assert "tilted at 0.005 deg per step instead of the ramp's 0.001 (preset `paper-5x`)" in five_sec
@@ -818,10 +790,10 @@ def test_the_definitions_section_at_4000_grains_says_when_it_is_preliminary(tmp_
     (root / "paper-fast").mkdir(parents=True)
     study = root / "paper-fast" / "definitions.json"
     study.write_text(json.dumps(doc))
-    assert study in report.inputs(root)
-    text = report.write_report(root, tmp_path / "R.md").read_text()
+    assert study in report.root_inputs(root)
+    text = report.write_studies(root, tmp_path / "R.md").read_text()
     assert ("## What the disagreements depend on (5 cycled piles of 4000 grains, `paper-fast`; "
             "preliminary, 5 of the 16 piles the verdicts wait for)") in text
     study.write_text(json.dumps(dict(doc, n_runs=16)))
-    text = report.write_report(root, tmp_path / "R.md").read_text()
+    text = report.write_studies(root, tmp_path / "R.md").read_text()
     assert "## What the disagreements depend on (16 cycled piles of 4000 grains, `paper-fast`)" in text

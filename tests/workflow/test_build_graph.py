@@ -168,9 +168,9 @@ def test_an_edit_rebuilds_exactly_what_depends_on_it(tree, rel):
 
 
 def test_the_report_rebuilds_when_any_json_it_reads_changes(tree):
-    from tiltpile.report import inputs
+    from tiltpile.report import root_inputs
 
-    read = {p.relative_to(tree) for p in inputs(tree / "figures")}
+    read = {p.relative_to(tree) for p in root_inputs(tree / "figures")}
     assert set(SCALE_JSON) | set(STUDY_JSON) <= read
     for rel in sorted(read):
         assert "report" in _plan(tree, rel), f"the report does not rebuild when {rel} changes"
@@ -180,16 +180,21 @@ def test_the_report_rebuilds_when_any_json_it_reads_changes(tree):
 @pytest.mark.parametrize("preset", ["default", "default-fresh", "paper", "smoke"])
 def test_the_report_target_lists_what_the_report_reads_at_every_scale(tree, preset):
     """The Makefile's REPORT_READS holds every file tiltpile.report.inputs finds for the preset's
-    figures directory (each scale's report reads the other scales' figures too)."""
-    from tiltpile.report import inputs
+    figures directory, and its ALL_REPORT_READS every file the main report and paper/STUDIES.md
+    read (tiltpile.report.root_inputs)."""
+    from tiltpile.report import inputs, root_inputs
 
-    r = subprocess.run(["make", "-s", "--eval", "show-reads: ; @echo $(FIGURES) $(REPORT_READS)",
+    r = subprocess.run(["make", "-s", "--eval",
+                        "show-reads: ; @echo $(FIGURES) $(REPORT_READS) , $(ALL_REPORT_READS)",
                         "show-reads", f"PRESET={preset}"], cwd=tree, capture_output=True, text=True,
                        timeout=60, env=MAKE_ENV)
     assert r.returncode == 0, r.stderr
-    figures, *listed = r.stdout.split()
+    own, every = r.stdout.split(" , ")
+    figures, *listed = own.split()
     read = {p.relative_to(tree).as_posix() for p in inputs(tree / figures)}
-    assert len(read) > 5 and read <= set(listed), sorted(read - set(listed))
+    assert read and read <= set(listed), sorted(read - set(listed))
+    main = {p.relative_to(tree).as_posix() for p in root_inputs(tree / "figures")}
+    assert len(main) > 5 and main <= set(every.split()), sorted(main - set(every.split()))
 
 
 def test_a_missing_study_output_is_rebuilt(tree):

@@ -41,16 +41,15 @@ One concern per module; the names of ``__all__`` import from ``tiltpile.report``
 from __future__ import annotations
 
 from .claims import CLAIMS, RULES
-from .document import inputs, load_figures, render, write_report
+from .document import inputs, load_figures, render, root_inputs, write_report, write_studies
 from .judging import AGREES, DISAGREES, INCONCLUSIVE, MISSING, Claim, Rule
 from .paper import CLAIMS_123, CLAIMS_456, RULES_PAPER
 from .rigidity import BEYOND, CLAIMS_RIGIDITY, RULES_RIGIDITY
 from .scales import SCALES, render_scales, scale_dirs
-from .studies import (CITES, QUIET_WINDOW_DEG, STUDIES, _theta_m_cites, _z_mean_cites,
-                      load_studies, render_preparation)
+from .studies import QUIET_WINDOW_DEG, STUDIES, load_studies, render_preparation
 
-__all__ = ["AGREES", "BEYOND", "CITES", "CLAIMS", "CLAIMS_123", "CLAIMS_456", "CLAIMS_RIGIDITY",
+__all__ = ["AGREES", "BEYOND", "CLAIMS", "CLAIMS_123", "CLAIMS_456", "CLAIMS_RIGIDITY",
            "DISAGREES", "INCONCLUSIVE", "MISSING", "QUIET_WINDOW_DEG", "RULES", "RULES_PAPER",
            "RULES_RIGIDITY", "SCALES", "STUDIES", "Claim", "Rule", "inputs", "load_figures",
-           "load_studies", "render", "render_preparation", "render_scales", "scale_dirs",
-           "write_report"]
+           "load_studies", "render", "render_preparation", "render_scales", "root_inputs", "scale_dirs",
+           "write_report", "write_studies"]

@@ -226,17 +226,3 @@ def _params_text(d: dict) -> str:
     return " ".join(f"-p {k} {v}" for k, v in p.items())
 
 
-def cite(doc: dict | None, claims: list[Claim], key: str, large: dict | None = None) -> str:
-    """The sentence a disagreeing claim's note cites: what its verdict depends on in the study
-    (``doc``, 1000 grains) and in the 4000-grain one (``large``, if given); '' without either."""
-    parts = []
-    for d in (doc, large):
-        dep = depends_on(d, claims, key) if d else None
-        if dep is not None:
-            parts.append((d, dep))
-    if not parts:
-        return ""
-    (d0, dep0), rest = parts[0], parts[1:]
-    more = "".join(f"; at {d.get('n_grains')} grains ({d.get('n_runs')} runs): {dep}" for d, dep in rest)
-    return (f"By definition (\"What the disagreements depend on\", {d0.get('n_runs')} runs of "
-            f"{d0.get('n_grains')} grains): {dep0}{more}.")

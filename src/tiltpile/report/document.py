@@ -1,7 +1,9 @@
-"""The report itself: load the figures' JSON, render the Markdown (the claims' table, the notes,
-the per-scale section, every claim's verdict at every scale (:func:`render_by_scale`), the
-preparation section, the rules), write it (:func:`write_report`), and list
-every file it reads (:func:`inputs`, which the Makefile's report target mirrors).
+"""The reports of one scale and the side studies in full: load the figures' JSON, judge every
+claim (:func:`judge_all`), render one scale's report (its claims' table and its judges' notes:
+:func:`write_report`, ``figures/<scale>/REPRODUCTION.md``), render every side study once
+(:func:`render_studies`: Fig. 2's numbers at every scale, every claim at every scale
+(:func:`render_by_scale`), the preparation, definitions, engines, history-rate and friction
+sections; ``paper/STUDIES.md``), and list the files a scale's report reads (:func:`inputs`).
 
 A claim whose figure JSON is missing is reported as "not measured": the report never fails
 silently on a missing figure, it says so.
@@ -20,9 +22,9 @@ from . import definitions as _definitions
 from . import engines as _engines
 from . import friction as _friction
 from . import history_rate as _rate
-from .judging import AGREES, DISAGREES, MISSING, Claim
+from .judging import AGREES, MISSING, Claim
 from .scales import preset_dir, render_scales, scale_dirs
-from .studies import CITES, STUDIES, load_studies, render_preparation
+from .studies import STUDIES, load_studies, render_preparation
 
 
 def load_figures(figures_dir) -> dict[str, dict]:
@@ -50,13 +52,7 @@ def source(doc: dict) -> str:
     return f"{doc.get('preset')}, {doc.get('n_runs')} runs of {doc.get('n_grains')} grains" + _history(doc)
 
 
-#: keys of the studies handed to :func:`judge_all` beside :func:`load_studies`' (by
-#: :func:`write_report`): the 4000-grain definitions study and the DEM's verdicts per pair
-LARGE_DEFINITIONS, ENGINES = "definitions-4000", "engines"
-
-
-def judge_all(figs: dict[str, dict], claims: list[Claim],
-              studies: dict | None = None) -> list[tuple[Claim, str, str, str, str]]:
+def judge_all(figs: dict[str, dict], claims: list[Claim]) -> list[tuple[Claim, str, str, str, str]]:
     """(claim, ours, verdict, note, source) of every claim on the loaded figure documents; a
     claim whose figure is missing is "not measured". The judges see the piles' history and the
     number of grains beside the numbers (a note may depend on them)."""
@@ -69,24 +65,18 @@ def judge_all(figs: dict[str, dict], claims: list[Claim],
         doc = figs[stem]
         ours, verdict, note = c.judge({**doc.get("numbers", {}), "history": doc.get("history"),
                                        "n_grains": doc.get("n_grains")})
-        cite = CITES[c.key](studies) if studies and c.key in CITES else ""
-        if studies and verdict == DISAGREES:
-            cite = " ".join(x for x in (
-                cite, _definitions.cite(studies.get("definitions"), claims, c.key,
-                                        studies.get(LARGE_DEFINITIONS)),
-                _engines.cite(studies.get(ENGINES, []), c.key)) if x)
-        out.append((c, ours, verdict, " ".join(x for x in (note, cite) if x), source(doc)))
+        out.append((c, ours, verdict, note, source(doc)))
     return out
 
 
 def render(figs: dict[str, dict], claims: list[Claim], scales: list[str] | None = None,
-           studies: dict | None = None) -> str:
+           rules: bool = True) -> str:
     """The Markdown report for the loaded figure documents (``scales``: lines of
     :func:`render_scales` and the other sections, appended; ``studies``: :func:`load_studies`,
     which the notes of the claims in ``CITES`` cite)."""
     rows, notes = [], []
     any_doc = next(iter(figs.values()), {})
-    for c, ours, verdict, note, src in judge_all(figs, claims, studies):
+    for c, ours, verdict, note, src in judge_all(figs, claims):
         rows.append(f"| {c.text} | {c.paper} | {ours} | {src} | **{verdict}** |")
         if note:
             notes.append(f"- **{c.text}** ({verdict}): {note}")
@@ -103,13 +93,16 @@ def render(figs: dict[str, dict], claims: list[Claim], scales: list[str] | None 
             "| claim | paper | ours | from | verdict |",
             "|---|---|---|---|---|"]
     tail = ["", "## Notes", ""] + notes if notes else []
-    rules = ["", "## How each claim is tested", ""]
+    said = ["", "## How each claim is tested", ""]
     for c in claims:
         r = RULES.get(c.key)
         if r is not None:
-            rules.append(f"- **{c.text}**. Paper: {r.sentence} Test: {r.test}")
+            said.append(f"- **{c.text}**. Paper: {r.sentence} Test: {r.test}")
+    if not rules:
+        said = ["", "Each claim's rule, and every study beside the claims: the main report, "
+                "`paper/REPRODUCTION.md`."]
     extra = list(scales) if scales else []
-    return "\n".join(head + rows + tail + extra + rules) + "\n"
+    return "\n".join(head + rows + tail + extra + said) + "\n"
 
 
 # the scales whose verdicts are set side by side (config.PRESET_TABLE's report "claims"; smoke,
@@ -232,43 +225,19 @@ def _changes_with(kinds: tuple) -> str:
 
 
 def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
-    """Render the report for ``figures_dir`` into ``out`` (a temporary file of this process, synced,
-    then renamed: :func:`tiltpile.outputs.replaced_whole`)."""
+    """The report of one scale's figures into ``out``: its claims' table and the notes of its
+    judges, nothing more (the studies and the rules are written once, in the main report
+    and ``paper/STUDIES.md``). Written whole or not at all
+    (:func:`tiltpile.outputs.replaced_whole`)."""
     figs = load_figures(figures_dir)
     if not figs:
         raise FileNotFoundError(f"no fig*.json in {figures_dir}: run the figure notebooks first")
     claims = CLAIMS if claims is None else claims
-    studies = load_studies(figures_dir)
-    pair = {s: load_figures(preset_dir(figures_dir, s)) for s in _engines.PAIR}
-    judged = {s: judge_all(f, claims) for s, f in pair.items() if f}
-    dem = [_engines.verdicts_of(judged.get(_engines.PAIR[1]), pair[_engines.PAIR[1]], _engines.PAIR[0])]
-    big = []
-    for paper_pair in _engines.PAPER_PAIRS:
-        d = preset_dir(figures_dir, paper_pair[1])
-        sides = {s: load_figures(p) for s, p in _engines.side_dirs(d, paper_pair).items()}
-        big_judged = {s: judge_all(f, claims) for s, f in sides.items() if f}
-        big += _engines.render_paper(_engines.load(d), big_judged, claims, paper_pair)
-        dem.append(_engines.verdicts_of(big_judged.get(paper_pair[1]), sides[paper_pair[1]],
-                                       paper_pair[0]))
-    engines = _engines.render(_engines.load(preset_dir(figures_dir, _engines.PAIR[1])), judged,
-                              claims, big)
-    fast = preset_dir(figures_dir, _rate.PAIR[1])
-    extra = {ENGINES: [x for x in dem if x], LARGE_DEFINITIONS: _definitions.load(fast)}
-    studies = {**studies, **{k: v for k, v in extra.items() if v}}
-    rate = []
-    for checked in _rate.PAIRS:
-        faster = preset_dir(figures_dir, checked[1])
-        sides = {s: load_figures(d) for s, d in _rate.side_dirs(faster, checked).items()}
-        rate += _rate.render(_rate.load(faster), {s: judge_all(f, claims) for s, f in sides.items() if f},
-                             claims, {s: f.get("fig2_avalanche_criterion") for s, f in sides.items()},
-                             checked)
-    text = render(figs, claims,
-                  render_scales(figures_dir) + render_by_scale(figures_dir, claims)
-                  + render_preparation(figures_dir)
-                  + _definitions.render(studies.get("definitions"), claims)
-                  + _definitions.render_large(fast, claims)
-                  + _definitions.render_every(fast, claims) + engines + rate
-                  + _friction.render(_friction.load(scale_dirs(figures_dir)["default"])), studies)
+    text = render(figs, claims, rules=False)
+    return _write(out, text)
+
+
+def _write(out, text: str) -> Path:
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     with replaced_whole(out) as tmp:
@@ -276,8 +245,59 @@ def write_report(figures_dir, out, claims: list[Claim] | None = None) -> Path:
     return out
 
 
+def render_studies(figures_dir, claims: list[Claim] | None = None) -> str:
+    """Every side study in full, once, from the figures root ``figures_dir`` (the default
+    scale's figures there, the others below it): Fig. 2's numbers at every scale, every claim at
+    every scale, the preparation study, the definitions studies, the engines, the history's
+    rate, friction (the main report gives each in brief)."""
+    claims = CLAIMS if claims is None else claims
+    studies = load_studies(figures_dir)
+    pair = {s: load_figures(preset_dir(figures_dir, s)) for s in _engines.PAIR}
+    judged = {s: judge_all(f, claims) for s, f in pair.items() if f}
+    big = []
+    for paper_pair in _engines.PAPER_PAIRS:
+        d = preset_dir(figures_dir, paper_pair[1])
+        sides = {s: load_figures(p) for s, p in _engines.side_dirs(d, paper_pair).items()}
+        big_judged = {s: judge_all(f, claims) for s, f in sides.items() if f}
+        big += _engines.render_paper(_engines.load(d), big_judged, claims, paper_pair)
+    engines = _engines.render(_engines.load(preset_dir(figures_dir, _engines.PAIR[1])), judged,
+                              claims, big)
+    fast = preset_dir(figures_dir, _rate.PAIR[1])
+    rate = []
+    for checked in _rate.PAIRS:
+        faster = preset_dir(figures_dir, checked[1])
+        sides = {s: load_figures(d) for s, d in _rate.side_dirs(faster, checked).items()}
+        rate += _rate.render(_rate.load(faster), {s: judge_all(f, claims) for s, f in sides.items() if f},
+                             claims, {s: f.get("fig2_avalanche_criterion") for s, f in sides.items()},
+                             checked)
+    lines = (render_scales(figures_dir) + render_by_scale(figures_dir, claims)
+             + render_preparation(figures_dir)
+             + _definitions.render(studies.get("definitions"), claims)
+             + _definitions.render_large(fast, claims)
+             + _definitions.render_every(fast, claims) + engines + rate
+             + _friction.render(_friction.load(scale_dirs(figures_dir)["default"])))
+    head = ["# The side studies in full",
+            "",
+            "Generated by `tiltpile report --studies` from the figures' JSON; do not edit by hand. "
+            "The main report, [REPRODUCTION.md](REPRODUCTION.md), gives each in brief beside the "
+            "paper's claims.", ""]
+    return "\n".join(head + lines) + "\n"
+
+
+def write_studies(figures_dir, out, claims: list[Claim] | None = None) -> Path:
+    """:func:`render_studies` into ``out``, whole or not at all."""
+    return _write(out, render_studies(figures_dir, claims))
+
+
 def inputs(figures_dir) -> list[Path]:
-    """Every file the report of ``figures_dir`` reads that exists: its ``fig*.json``, the
+    """Every file the report of ``figures_dir`` reads: its ``fig*.json`` (the Makefile's report
+    target depends on the same)."""
+    return sorted(Path(figures_dir).glob("fig*.json"))
+
+
+def root_inputs(figures_dir) -> list[Path]:
+    """Every file the main report and ``paper/STUDIES.md`` of the figures root ``figures_dir``
+    read that exists: its ``fig*.json``, the
     Fig. 2's JSON of every scale (:func:`render_scales`), every ``fig*.json`` of the scales
     :func:`render_by_scale` compares, its ``preparation.json`` (:func:`render_preparation`), the
     default scale's studies (:func:`load_studies`), the figures of both engines' scales and
@@ -285,8 +305,8 @@ def inputs(figures_dir) -> list[Path]:
     (:mod:`.engines`), the paper-fast study and its two sides' figures
     (:mod:`.history_rate`, each pair), the definitions study at 4000 grains (:func:`.definitions.render_large`,
     :func:`.definitions.render_every`)
-    and the friction study (:mod:`.friction`). The Makefile's report target lists the same
-    files (tests/workflow/test_build_graph.py checks it)."""
+    and the friction study (:mod:`.friction`). The Makefile's ALL_REPORT_READS holds them
+    (tests/workflow/test_build_graph.py checks it)."""
     d = Path(figures_dir)
     root = scale_dirs(d)["default"]
     found = sorted(d.glob("fig*.json"))

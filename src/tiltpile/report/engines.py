@@ -187,25 +187,3 @@ def render(study: dict | None, judged: dict[str, list], claims: list[Claim],
     return lines + (paper or [])
 
 
-def verdicts_of(rows: list | None, figs: dict[str, dict] | None, ref: str) -> dict | None:
-    """What the DEM side of a pair says of each claim, for the notes (:func:`cite`): {"ref",
-    "grains", "piles", "verdicts": {claim key: verdict}} from its judge_all ``rows`` and its
-    loaded figure documents ``figs`` (``ref``: the pair's Contact Dynamics preset); None without
-    them."""
-    if not rows or not figs:
-        return None
-    doc = next(iter(figs.values()))
-    return {"ref": ref, "grains": doc.get("n_grains"), "piles": doc.get("n_runs"),
-            "verdicts": {r[0].key: r[2] for r in rows}}
-
-
-def cite(sides: list[dict], key: str) -> str:
-    """The sentence a disagreeing claim's note cites: the DEM's verdict of the claim on the same
-    piles, per scale (``sides``: :func:`verdicts_of` of each pair judged); '' without any."""
-    said = [f"{s['verdicts'][key]} at {s['grains']} grains ({s['ref']}'s {s['piles']} piles"
-            + (", preliminary" if (s["piles"] or 0) < 3 else "") + ")"
-            for s in sides if s and s["verdicts"].get(key, MISSING) != MISSING]
-    if not said:
-        return ""
-    return ("The second engine (soft-sphere DEM; the piles, history and ramp of a Contact Dynamics "
-            f"preset; \"Same piles, another model\"): {'; '.join(said)}.")

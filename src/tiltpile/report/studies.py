@@ -1,6 +1,6 @@
-"""The studies beside the figures: the preparation study's section of the report
-(:func:`render_preparation`), and the sentences the notes of two claims cite from the preparation
-and <z>-counting studies (``CITES``), read by :func:`load_studies`.
+"""The studies beside the figures: the preparation study's section of ``paper/STUDIES.md``
+(:func:`render_preparation`), the studies' JSON of a figures directory (:func:`load_studies`),
+and a parameter study's section (:func:`render_study`).
 """
 
 from __future__ import annotations
@@ -9,7 +9,7 @@ import json
 import math
 from pathlib import Path
 
-from tiltpile.paper_values import AVALANCHE_DEG, QUIET_DEG, REPOSE_DEG, Z_MEAN
+from tiltpile.paper_values import AVALANCHE_DEG, QUIET_DEG, REPOSE_DEG
 
 from .judging import num, show
 from .scales import scale_dirs
@@ -29,53 +29,6 @@ def load_studies(figures_dir) -> dict[str, dict]:
 
 QUIET_WINDOW_DEG = QUIET_DEG.value  # the paper's Fig. 5 shows clusters this far before an onset
 
-
-def _theta_m_cites(studies: dict) -> str:
-    """What the preparation study says of the first onset: per history, the runs quiet past the
-    paper's window and the mean first onset, against the reference (fresh piles)."""
-    n = (studies.get("preparation") or {}).get("numbers")
-    if not n or not n.get("ensembles"):
-        return ""
-    ens = n["ensembles"]
-
-    def part(label):
-        e = ens[label]
-        m, lo, hi = (num(e.get(f"theta_first_onset_{x}")) for x in ("mean", "ci_low", "ci_high"))
-        band = f" [{lo:.1f}, {hi:.1f}]" if math.isfinite(lo) and math.isfinite(hi) else ""
-        return (f"{label}: {_quiet_past(e)} of {e['n_runs']} runs quiet to {QUIET_WINDOW_DEG:g} deg, first onset "
-                f"{show(m, '.1f')}{band} deg")
-
-    others = [lab for lab in ens if lab != n["reference"]]
-    grains = "/".join(sorted({str(e.get("n_grains")) for e in
-                              studies["preparation"].get("ensembles", [])}))
-    return (f"The preparation study ({grains} grains; section below) shows how the pile's history "
-            f"sets this: {part(n['reference'])}; " + "; ".join(part(lab) for lab in others) + ".")
-
-
-def _z_mean_cites(studies: dict) -> str:
-    """What the counting-rule study says of <z>: the analysis's rule and the least surface gap
-    at which the count reaches the paper's 3.5, per ensemble."""
-    doc = studies.get("zcount")
-    if not doc or not doc.get("ensembles"):
-        return ""
-    parts, z_paper = [], f"{Z_MEAN.value:g}"
-    for label, e in doc["ensembles"].items():
-        z = num((e.get("table", {}).get(e.get("analysis_rule"), {}) or {}).get("z"))
-        reach = e.get("reaches_paper_z") or {}
-        gap = ((reach.get("first_gap") or {}).get("walls=in rattlers=out grains=bulk") or {})
-        g = num(gap.get("interpolated"))
-        parts.append(f"{label} {show(z, '.3f')}, {z_paper} at gap <= {show(g, '.2g')} d" if math.isfinite(g)
-                     else f"{label} {show(z, '.3f')}, {z_paper} at no gap up to the alert distance")
-    force = any((e.get("reaches_paper_z") or {}).get("force_rule_reaches")
-                for e in doc["ensembles"].values())
-    return ("By counting rule (`tiltpile zcount`, figures/zcount.png): no force threshold reaches "
-            f"{z_paper}, " if not force else "By counting rule (`tiltpile zcount`, figures/zcount.png): ") + (
-            "counting every pair of bulk grains closer than a surface gap g does: "
-            + "; ".join(parts) + f". The paper's ~{z_paper} is then what a contact list holding the "
-            "near contacts counts, not the force-bearing network.")
-
-
-CITES = {"theta_m": _theta_m_cites, "z_mean": _z_mean_cites}
 
 
 def _quiet_past(e: dict) -> int:
