@@ -219,7 +219,12 @@ class _Bar:
     ``mode`` False disables it, "log" refreshes at most every 30 s (for log files)."""
 
     def __init__(self, theta_max_deg, seed, mode, position):
-        from tqdm.auto import tqdm
+        # tqdm.auto in a notebook kernel without ipywidgets warns on import, even for a bar that
+        # is off: the plain bar then
+        if mode:
+            from tqdm.auto import tqdm
+        else:
+            from tqdm import tqdm
 
         self.interval = 1.0 if mode != "log" else 30.0
         self.t = tqdm(total=round(theta_max_deg, 3), unit="deg", position=position,
