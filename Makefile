@@ -19,9 +19,12 @@ $(STAMP): environment.txt pyproject.toml
 	$(PY) -m pip install -q --no-deps -e .
 	$(PY) -m ipykernel install --sys-prefix --name tiltpile --display-name "tiltpile" > /dev/null
 	@# The kernel logs errors only: ipykernel >= 7.3 warns at every start that its loopback TCP
-	@# sockets are unencrypted, a line per notebook that papermill's CLI cannot turn off.
+	@# sockets are unencrypted, a line per notebook that papermill's CLI cannot turn off. And not
+	@# the interrupt of papermill's shutdown, an ERROR line after a notebook that ran without fault
+	@# (the extension tiltpile.figures.kernel drops that line alone: its docstring says why).
 	$(PY) -c "import json, pathlib; p = pathlib.Path('$(VENV)/share/jupyter/kernels/tiltpile/kernel.json'); \
-	  k = json.loads(p.read_text()); k['argv'].append('--IPKernelApp.log_level=ERROR'); p.write_text(json.dumps(k, indent=1))"
+	  k = json.loads(p.read_text()); k['argv'] += ['--IPKernelApp.log_level=ERROR', '--IPKernelApp.extra_extensions=tiltpile.figures.kernel']; \
+	  p.write_text(json.dumps(k, indent=1))"
 	touch $@
 
 test: setup

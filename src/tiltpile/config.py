@@ -32,6 +32,7 @@ import json
 import math
 import operator
 import os
+import re
 import stat
 import tomllib
 from dataclasses import dataclass, field, fields
@@ -96,63 +97,75 @@ def _f(default, **kw):
 
 @dataclass(frozen=True)
 class SceneConfig:
-    n: int = _f(1000, lo=1, hi=10_000_000, doc="number of mobile grains")
+    n: int = _f(1000, lo=1, hi=10_000_000,
+                doc="number of mobile grains, above the fixed rough bottom row; with box_length "
+                    "it sets the pile's depth (tiltpile config prints it) [grains]")
     polydispersity: float = _f(0.2, lo=0.0, hi=1.0, hi_open=True,
-                               doc="diameters uniform in [1 - p, 1 + p] (mean d = 1)")
-    box_length: float = _f(40.0, lo=2.0, lo_open=False, doc="box length L in d")
-    mu: float = _f(0.5, lo=0.0, doc="grain-grain (and grain-fixed-grain) friction coefficient")
-    mu_wall: float = _f(0.5, lo=0.0, doc="friction coefficient of the floor and side walls")
+                               doc="half-width p of the diameter range: diameters uniform in "
+                                   "[1 - p, 1 + p] (mean d = 1) [d]")
+    box_length: float = _f(40.0, lo=2.0, lo_open=False,
+                           doc="box length L: the distance between the side walls [d]")
+    mu: float = _f(0.5, lo=0.0, doc="grain-grain (and grain-fixed-grain) friction coefficient [-]")
+    mu_wall: float = _f(0.5, lo=0.0, doc="friction coefficient of the floor and side walls [-]")
     fill_spacing: float = _f(1.15, lo=1.0, hi=3.0,
-                             doc="initial loose lattice spacing, in units of the largest diameter")
+                             doc="initial loose lattice spacing, in largest diameters d_max = 1 + p "
+                                 "[d_max]")
 
 
 @dataclass(frozen=True)
 class SolverConfig:
-    dt: float = _f(0.01, lo=0.0, lo_open=True, hi=1.0, doc="time step in sqrt(d/g)")
+    dt: float = _f(0.01, lo=0.0, lo_open=True, hi=1.0, doc="time step [sqrt(d/g)]")
     tol: float = _f(1e-6, lo=0.0, lo_open=True, hi=1.0,
-                    doc="NLGS stop: relative L2 change of the impulses over one sweep")
+                    doc="NLGS stop: relative L2 change of the impulses over one sweep [-]")
     deposition_tol: float = _f(1e-4, lo=0.0, lo_open=True, hi=1.0,
-                               doc="the same during deposition (only its end state matters)")
-    max_iter: int = _f(1000, lo=1, hi=10_000_000, doc="cap on NLGS sweeps per step")
+                               doc="NLGS stop during deposition (only its end state matters) [-]")
+    max_iter: int = _f(1000, lo=1, hi=10_000_000, doc="cap on NLGS sweeps per step [sweeps]")
     # A cap by phase, for studies: in a large slide no affordable cap converges a step. 200 is too
     # few at the default scale (the solver creates energy: docs/performance.md); off in the presets.
     max_iter_slide: int = _f(0, lo=0, hi=10_000_000,
                              doc="cap on NLGS sweeps per tilt step while the last frame's kinetic "
-                                 "energy per grain exceeds slide_cap_ke; 0: max_iter throughout")
+                                 "energy per grain exceeds slide_cap_ke; 0: max_iter throughout "
+                                 "[sweeps]")
     slide_cap_ke: float = _f(1e-3, lo=0.0, lo_open=True,
-                         doc="kinetic energy per mobile grain [m g d] above which max_iter_slide applies")
+                         doc="kinetic energy per mobile grain above which max_iter_slide applies "
+                             "[m g d]")
     # interleaved: the forward (key) order with no body twice within 8 places (sim/solver.py);
     # why it is the default: notes/performance-log.md ("Sweep order")
     sweep: str = _f("interleaved", choices=("alternating", "random", "forward", "interleaved"),
-                    doc="contact order of the NLGS sweeps")
+                    doc="contact order of the NLGS sweeps [-]")
     # Projected SOR (sim/solver.py); relax 1 with sweep = "random" is the plain NLGS reference.
     # Why the default stays 1: notes/performance-log.md ("Numbers in the configuration's comments")
     relax: float = _f(1.0, lo=0.0, lo_open=True, hi=2.0, hi_open=True,
                       doc="over-relaxation factor omega of the local solves (projected SOR; "
-                          "1 = plain NLGS)")
+                          "1 = plain NLGS) [-]")
     # sim/solver.py "Pruned sweeps": in steps past 20 sweeps, leave out the open contacts that
     # cannot close (measured: docs/performance.md)
     prune: bool = _f(True, doc="sweep only the contacts that can act in steps past 20 sweeps "
-                                "(forward and interleaved sweeps)")
+                                "(forward and interleaved sweeps) [-]")
     # sim/step.py "Overlap slop"; why 1e-6 d: docs/performance.md
     overlap_slop: float = _f(1e-6, lo=0.0, hi=0.01,
-                             doc="overlaps up to this [d] are not pushed out by the gap term")
+                             doc="overlaps up to this are not pushed out by the gap term [d]")
     alert: float = _f(0.1, lo=0.0, lo_open=True, hi=1.0,
-                      doc="alert distance (d) of the candidate contact list")
+                      doc="alert distance of the candidate contact list [d]")
 
 
 @dataclass(frozen=True)
 class ProtocolConfig:
-    tilt_per_step_deg: float = _f(0.002, lo=0.0, lo_open=True, hi=1.0, doc="rotation of gravity per step")
-    theta_max_deg: float = _f(22.0, lo=0.0, hi=90.0, doc="final inclination")
-    frame_every: int = _f(25, lo=1, hi=10_000_000, doc="steps between frames")
+    tilt_per_step_deg: float = _f(0.002, lo=0.0, lo_open=True, hi=1.0,
+                                  doc="rotation of gravity per step [deg/step]")
+    theta_max_deg: float = _f(22.0, lo=0.0, hi=90.0, doc="final inclination [deg]")
+    frame_every: int = _f(25, lo=1, hi=10_000_000, doc="steps between frames [steps]")
     # above the kinetic-energy floor an NLGS stopped at deposition_tol leaves in a pile
     # (docs/performance.md)
     rest_ke: float = _f(1e-6, lo=0.0, lo_open=True,
-                        doc="deposition ends when kinetic energy per grain (m g d) stays below this")
-    rest_steps: int = _f(100, lo=1, doc="... for this many consecutive steps")
-    max_deposition_steps: int = _f(50_000, lo=1, doc="give up if the pile is not at rest by then")
-    checkpoint_every: int = _f(20, lo=1, doc="frames between checkpoints")
+                        doc="deposition ends when kinetic energy per grain stays below this "
+                            "[m g d]")
+    rest_steps: int = _f(100, lo=1, doc="the pile is at rest once its kinetic energy has stayed "
+                                        "below rest_ke for this many consecutive steps [steps]")
+    max_deposition_steps: int = _f(50_000, lo=1,
+                                   doc="give up if the pile is not at rest by then (deposition, "
+                                       "and each history leg's holding) [steps]")
+    checkpoint_every: int = _f(20, lo=1, doc="frames between checkpoints [frames]")
     # Preparation history: after deposition, tilt to each angle in turn at tilt_per_step_deg per
     # step, each leg ending at rest (rest_ke for rest_steps, at most max_deposition_steps of
     # holding); the analysed ramp then starts from 0 deg, so a history must end at 0.
@@ -161,17 +174,20 @@ class ProtocolConfig:
     # i.e. pretilt_deg = [a, -a, a, ..., -a, a, 0] (from_dict expands it: HISTORY_SHORTHAND).
     pretilt_deg: tuple = _f((), lo=-90.0, hi=90.0,
                             doc="tilt excursions before the analysed ramp, e.g. [15.0, -15.0, 0.0] "
-                                "(each leg ending at rest; must end at 0.0)")
+                                "(each leg ending at rest; must end at 0.0) [deg]")
     pretilt_per_step_deg: float = _f(0.0, lo=0.0, hi=1.0,
                                      doc="rotation of gravity per step in the pretilt legs; "
-                                         "0: tilt_per_step_deg (the analysed ramp's rate)")
+                                         "0: tilt_per_step_deg (the analysed ramp's rate) "
+                                         "[deg/step]")
     # End-of-run rule: the figures need the quiet periods, the onsets and the first frames of the
     # large slide, not a pile flowing for ten more degrees.
     end_ke: float = _f(0.0, lo=0.0, doc="end the tilt once the kinetic energy per mobile grain "
-                                         "[m g d] of the frames has stayed above this for "
-                                         "end_span_deg (a large slide); 0 tilts to theta_max_deg")
+                                         "of the frames has stayed above this for "
+                                         "end_span_deg (a large slide); 0 tilts to theta_max_deg "
+                                         "[m g d]")
     end_span_deg: float = _f(1.0, lo=0.0, lo_open=True, hi=90.0,
-                             doc="tilt span [deg] of consecutive frames above end_ke that ends the run")
+                             doc="tilt span of consecutive frames above end_ke that ends the run "
+                                 "[deg]")
 
     @property
     def history_step_deg(self) -> float:
@@ -216,12 +232,12 @@ class HealthConfig:
                                 "[m g d]")
     cap_hit_warn_fraction: float = _f(0.9, lo=0.0, hi=1.0,
                                       doc="warn when more than this fraction of the steps at "
-                                          "solver.tol (settling and tilt) hit solver.max_iter")
+                                          "solver.tol (settling and tilt) hit solver.max_iter [-]")
     cap_hit_stop_fraction: float = _f(0.98, lo=0.0, hi=1.0,
                                       doc="stop when more than this fraction has, judged from "
                                           "CAP_HIT_MIN_STEPS (500) steps on (the same steps: "
                                           "not the history's, which flow past the repose "
-                                          "angle); 1 never stops")
+                                          "angle); 1 never stops [-]")
 
 
 @dataclass(frozen=True)
@@ -236,18 +252,20 @@ class DemConfig:
     """
 
     kn: float = _f(2e5, lo=0.0, lo_open=True,
-                   doc="Hookean normal stiffness k_n [m g / d], m = pi d^2 / 4")
+                   doc="Hookean normal stiffness k_n, m = pi d^2 / 4 [m g / d]")
     restitution: float = _f(0.1, lo=0.0, lo_open=True, hi=1.0,
-                            doc="normal restitution of a binary collision (viscous damping)")
+                            doc="normal restitution of a binary collision (viscous damping) [-]")
     kt_ratio: float = _f(2.0 / 7.0, lo=0.0, lo_open=True, hi=10.0,
-                         doc="tangential spring k_t / k_n (history spring truncated at mu f_n)")
+                         doc="tangential spring k_t / k_n (history spring truncated at mu f_n) [-]")
     # 0: undamped tangential springs, the earlier cross-check's model (docs/dem.md, "Measured")
     tangential_damping: float = _f(0.0, lo=0.0, hi=10.0,
-                                   doc="tangential viscous damping as a multiple of the normal one")
+                                   doc="tangential viscous damping as a multiple of the normal one [-]")
     dt: float = _f(8e-5, lo=0.0, lo_open=True, hi=0.1,
-                   doc="largest DEM time step [sqrt(d/g)]; the step used divides solver.dt")
+                   doc="largest DEM time step; the step used divides solver.dt "
+                       "[sqrt(d/g)]")
     slide_eps: float = _f(1e-9, lo=0.0, hi=0.5,
-                          doc="a contact is stored as sliding when |f_t| >= mu f_n (1 - slide_eps)")
+                          doc="a contact is stored as sliding when |f_t| >= mu f_n (1 - slide_eps) "
+                              "[-]")
 
 
 # (section, key) -> the default at which the key is left out of the canonical JSON (Config.to_json)
@@ -260,8 +278,9 @@ LATER_KEYS = {("protocol", "pretilt_deg"): (), ("protocol", "pretilt_per_step_de
 # protocol.pretilt_deg (deboeuf_history), so a history has one canonical form and one hash
 # however it was written.
 HISTORY_SHORTHAND = {"cycles": "number of full cycles +-theta_rev_deg after the first tilt to "
-                               "theta_rev_deg (Deboeuf et al. 2005: 2); writes pretilt_deg",
-                     "theta_rev_deg": "amplitude [deg] of the cycles; 0: no history"}
+                               "theta_rev_deg (Deboeuf et al. 2005: 2); writes pretilt_deg "
+                               "[cycles]",
+                     "theta_rev_deg": "amplitude of the cycles; 0: no history [deg]"}
 
 
 def deboeuf_history(cycles: int, theta_rev_deg: float) -> tuple:
@@ -436,6 +455,101 @@ def describe_range(f: dataclasses.Field) -> str:
     left = "(-inf" if lo is None else ("(" if meta["lo_open"] else "[") + repr(lo)
     right = "inf)" if hi is None else repr(hi) + (")" if meta["hi_open"] else "]")
     return f"{left}, {right}"
+
+
+# What the configuration checks across keys (_check_consistency, _expand_history), beside each
+# key's own range: said after the range in the key listing (describe_keys).
+_ACROSS_KEYS = {
+    "scene.box_length": "at least 2 (1 + scene.polydispersity) scene.fill_spacing",
+    "protocol.pretilt_deg": "the list ends at 0.0",
+    "protocol.pretilt_per_step_deg": "above 0 only with a history",
+    "health.overlap_warn": "at most health.overlap_stop",
+    "health.energy_warn": "at most health.energy_stop",
+    "health.cap_hit_warn_fraction": "at most health.cap_hit_stop_fraction",
+    "dem.dt": ("a collision of the two smallest grains (dem.kn, dem.restitution) spans at "
+               "least {dem_min_steps} of its steps"),
+}
+# the ranges _expand_history checks the history shorthand's keys against
+_SHORTHAND_RANGES = {"cycles": "an integer in [0, 100]", "theta_rev_deg": "[0.0, 90.0]"}
+_UNIT = re.compile(r"\s*\[([^\[\]]+)\]$")
+_TYPES = {int: "integer", float: "number", str: "string", bool: "true or false",
+          tuple: "list of numbers"}
+
+
+def _field_type(f: dataclasses.Field) -> type:
+    return f.type if isinstance(f.type, type) else {"int": int, "float": float, "str": str,
+                                                    "bool": bool, "tuple": tuple}[f.type]
+
+
+def split_doc(doc: str) -> tuple[str, str]:
+    """A field's doc as (meaning, unit): its unit is the bracketed group that ends it
+    ("time step [sqrt(d/g)]" -> ("time step", "sqrt(d/g)"); "-" a pure number, "grains",
+    "steps", ... a count). ConfigError for a doc without one (every field's doc has one)."""
+    m = _UNIT.search(doc)
+    if not m:
+        raise ConfigError(f"field doc {doc!r} does not end with its unit in brackets")
+    return doc[:m.start()], m.group(1)
+
+
+def describe_keys(cfg: Config | None = None) -> list[dict[str, Any]]:
+    """Every configuration key, in section order, as a dict: ``key`` ("scene.n"), ``section``,
+    ``name``, ``meaning`` and ``unit`` (from the field's doc: :func:`split_doc`), ``type``,
+    ``default`` (TOML text), ``value`` (TOML text of ``cfg``'s value; None when ``cfg`` has no
+    such section, e.g. ``dem`` outside a DEM run), ``range`` (:func:`describe_range`, and what
+    is checked across keys), ``optional`` (the key's section may be absent) and ``shorthand``
+    (the key writes another and is not stored: ``HISTORY_SHORTHAND``; its default and value are
+    None). What ``tiltpile config`` prints and docs/cli.md's table is rendered from."""
+    cfg = cfg if cfg is not None else Config()
+    rows = []
+    for section, cls in SECTIONS.items():
+        given = getattr(cfg, section)
+        for f in fields(cls):
+            key = f"{section}.{f.name}"
+            meaning, unit = split_doc(f.metadata["doc"])
+            typ = _field_type(f)
+            allowed = describe_range(f) if typ is not bool else "true or false"
+            if key in _ACROSS_KEYS:
+                allowed += "; " + _ACROSS_KEYS[key].format(dem_min_steps=DEM_MIN_CONTACT_STEPS)
+            if typ is tuple:
+                allowed = "each in " + allowed
+            rows.append({"key": key, "section": section, "name": f.name, "meaning": meaning,
+                         "unit": unit, "type": _TYPES[typ], "default": _toml_value(f.default),
+                         "value": None if given is None else _toml_value(getattr(given, f.name)),
+                         "range": allowed, "optional": section in OPTIONAL_SECTIONS,
+                         "shorthand": False})
+        if section == "protocol":
+            for name, doc in HISTORY_SHORTHAND.items():
+                meaning, unit = split_doc(doc)
+                rows.append({"key": f"protocol.{name}", "section": section, "name": name,
+                             "meaning": meaning, "unit": unit,
+                             "type": "integer" if name == "cycles" else "number",
+                             "default": None, "value": None, "range": _SHORTHAND_RANGES[name],
+                             "optional": False, "shorthand": True})
+    return rows
+
+
+#: The packing fraction of a deposited pile (its mobile grains' area over box_length times its
+#: depth), with which ``tiltpile config`` turns scene.n into the pile's depth. Measured from the
+#: top of the rough bottom row to the mean height of the grains' tops in 2 d wide columns, at
+#: frame 0: 0.80 on a default pile (seed 0; 24.8 d deep, 24.9 d estimated), 0.77-0.79 on the four
+#: smoke piles (12.7-12.9 d, 12.4 d estimated). An estimate to about 5%: the free surface is rough
+#: by about a grain, the walls loosen small piles, and the packing depends on the friction and the
+#: deposition.
+PILE_PACKING_FRACTION = 0.80
+
+
+def describe_depth(cfg: Config | None = None) -> dict[str, float]:
+    """The depth of ``cfg``'s deposited pile, which no key sets: scene.n mobile grains of mean
+    area pi (1 + p^2 / 3) / 4 (diameters uniform in [1 - p, 1 + p]) filling the box's length
+    L at the packing fraction phi = ``PILE_PACKING_FRACTION``, above the rough bottom row:
+    ``depth`` = n pi (1 + p^2 / 3) / (4 phi L) [d]; ``grains_per_depth`` = the grains one d of
+    depth takes (scene.n = depth x grains_per_depth sets a depth)."""
+    s = (cfg if cfg is not None else Config()).scene
+    area = math.pi * (1.0 + s.polydispersity ** 2 / 3.0) / 4.0
+    per_d = PILE_PACKING_FRACTION * s.box_length / area
+    return {"n": s.n, "box_length": s.box_length, "polydispersity": s.polydispersity,
+            "packing_fraction": PILE_PACKING_FRACTION, "grain_area": area,
+            "grains_per_depth": per_d, "depth": s.n / per_d}
 
 
 def from_dict(data: dict[str, Any], base: Config | None = None) -> Config:

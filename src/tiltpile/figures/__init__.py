@@ -31,4 +31,6 @@ The other modules:
 ``study``         a parameter study's numbers and figure (``tiltpile study``)
 ``definitions``   every figure number under each definition the paper leaves open
                   (``tiltpile definitions``)
+``kernel``        the IPython extension of the notebooks' kernel (``make setup``): no ERROR line
+                  from papermill's shutdown interrupt
 """
