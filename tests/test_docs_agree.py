@@ -127,3 +127,78 @@ def test_the_paper_ensembles_cost_is_the_same_everywhere():
     assert quoted <= {hours}, quoted
     for where, text in (("docs/performance.md", now), ("docs/slurm.md", SLURM)):
         assert "20-30 min" in " ".join(text.split()), where          # a fresh paper run
+
+
+def test_every_document_quotes_the_figures_through_generated_blocks():
+    """Each document of blocks.DOCUMENTS holds at least one generated block, each block is one of
+    its own prefix's templates, and every template of the four reference documents' prefixes is
+    quoted where it belongs (a template no document holds would be a number nobody reads)."""
+    rendered = blocks.render_all(ROOT / "figures")
+    for name, prefix in blocks.DOCUMENTS.items():
+        found = [m.group(1) for m in map(blocks.BEGIN.match, (ROOT / name).read_text().splitlines()) if m]
+        assert found, f"{name} holds no generated block"
+        assert all(b.split("_")[0] == prefix for b in found), (name, found)
+        assert all(rendered[b].strip() for b in found), (name, [b for b in found if not rendered[b].strip()])
+    for name in ("docs/presets.md", "docs/figures.md", "docs/dem.md", "docs/performance.md"):
+        prefix = blocks.DOCUMENTS[name]
+        text = (ROOT / name).read_text()
+        unused = [b for b, md in rendered.items() if b.startswith(prefix + "_") and md.strip()
+                  and f"<!-- generated: {b} (tiltpile docs; do not edit) -->" not in text]
+        assert not unused, (name, unused)
+
+
+def test_a_number_changed_in_a_json_reaches_docs_presets(tmp_path):
+    """paper-fast's slide against paper's (its same_piles.json) and the default piles' contacts per
+    frame (fig2's n_active_mean), changed in the JSON: docs/presets.md follows with no hand edit."""
+    repo = _copy_json(tmp_path)
+    f = repo / "figures" / "paper-fast" / "same-piles" / "same_piles.json"
+    study = json.loads(f.read_text())
+    d = study["pile_against_pile"]["difference"]["theta_first_slide"]
+    old = f"{d['mean']:+.2f} [{d['ci_low']:+.2f}, {d['ci_high']:+.2f}]"
+    d["mean"], d["ci_low"], d["ci_high"] = 1.23, 0.45, 2.01
+    f.write_text(json.dumps(study))
+    f2 = repo / "figures" / "fig2_avalanche_criterion.json"
+    doc = json.loads(f2.read_text())
+    doc["numbers"]["n_active_mean"] = 2500.0
+    f2.write_text(json.dumps(doc))
+    presets = repo / "docs" / "presets.md"
+    assert old in presets.read_text()
+    assert presets in blocks.update(repo)
+    text = presets.read_text()
+    assert old not in text and "+1.23 [+0.45, +2.01]" in text
+    # 2% of 2500 contacts: the cutoff's count follows the contacts per frame
+    assert "holds 2500 force-bearing contacts on average, so the 2% cutoff is about 50 lost" in text
+
+
+def test_the_docs_read_the_pile_against_pile_numbers_the_report_reads():
+    """blocks.same_piles, which the documents' templates read, gives each history-rate check's
+    pile-against-pile rows as the main report's context does (the same study, the same means)."""
+    from tiltpile.report.engines import ROWS
+    from tiltpile.report.main import context
+
+    studies = blocks.same_piles(ROOT / "figures")
+    for x in context(ROOT / "figures")["rates"]:
+        rows = studies[x["faster"]]["rows"]
+        assert studies[x["faster"]]["ref"] == x["ref"]
+        for r in x["rows"]:
+            key = next(k for k, label, _ in ROWS if label == r["label"])
+            for ours, theirs in (("ref", "ref"), ("value", "value"), ("diff", "diff"), ("low", "low"),
+                                 ("high", "high"), ("n", "n")):
+                a, b = rows[key][ours], r[theirs]
+                assert a == b or (a != a and b != b), (x["faster"], key, ours, a, b)
+
+
+def test_the_preparation_helper_compares_a_faster_history_with_the_study_s_own_rule():
+    """blocks.preparation's "between" (a history at N x the ramp's rate against the same history
+    at the ramp's rate, quoted in docs/figures.md and docs/presets.md) is the difference of the
+    per-run means of the committed study, with the study's own interval (diff_ci)."""
+    import numpy as np
+
+    p = blocks.preparation(ROOT / "figures")["default"]
+    assert p["reference"] == "fresh" and "cyc16r10:cyc16" in p["between"]
+    fast, slow = p["ensembles"]["cyc16r10"]["per_run"], p["ensembles"]["cyc16"]["per_run"]
+    for q, d in p["between"]["cyc16r10:cyc16"].items():
+        a = np.array([np.nan if v is None else v for v in fast[q]], float)
+        b = np.array([np.nan if v is None else v for v in slow[q]], float)
+        assert d["estimate"] == pytest.approx(np.nanmean(a) - np.nanmean(b))
+        assert d["low"] <= d["estimate"] <= d["high"]

@@ -12,6 +12,14 @@ files in ``FILES`` from the templates ``templates/<NAME>.md.j2`` with the main r
 (:func:`tiltpile.report.main.context`) and the presets' table (:func:`presets`); ``--check``
 changes nothing and exits 1 when a block is stale (the freshness test runs it). A block name
 with no template, or a marker without its end, is an error naming the file and the line.
+
+Beside the report's context the templates read the committed JSON through small loaders, each
+returning the file's numbers as they are (or a number derived from them alone, as named):
+``figs`` (:func:`figure_numbers`), ``meta`` (:func:`figure_meta`: runs, grains, history, cost),
+``derived`` (:func:`derived`: Fig. 2's two populations and per-run angles summarized),
+``same_piles`` (:func:`same_piles`: the pile-against-pile studies and their sides' figures),
+``preparation`` (:func:`preparation`: the preparation studies at 1000 and 4000 grains) and
+``definitions_study`` (:func:`definitions`: each definition's figure numbers).
 """
 
 from __future__ import annotations
@@ -25,7 +33,7 @@ from tiltpile.outputs import replaced_whole
 #: the documents that hold generated blocks, from the repository's root, and the prefix of the
 #: templates their blocks are rendered from (``templates/<prefix>_<name>.md.j2``)
 DOCUMENTS = {"README.md": "readme", "docs/presets.md": "presets", "docs/figures.md": "figures",
-             "docs/dem.md": "dem", "docs/performance.md": "performance"}
+             "docs/dem.md": "dem", "docs/performance.md": "performance", "docs/cli.md": "cli"}
 FILES = tuple(DOCUMENTS)
 BEGIN = re.compile(r"^<!-- generated: ([a-z0-9_-]+) \(tiltpile docs; do not edit\) -->$")
 END = "<!-- end generated: {name} -->"
@@ -60,6 +68,224 @@ def presets(root="figures") -> list[dict]:
     return out
 
 
+def figure_numbers(root="figures") -> dict[str, dict[str, dict]]:
+    """{preset: {figure stem: the figure's ``numbers``}} of every preset whose figures directory
+    holds figure JSON (the templates read any number as ``figs[preset][stem][key]``)."""
+    from .document import load_figures
+
+    out = {}
+    for p in cfgmod.PRESET_TABLE:
+        d = Path(root).parent / p.figures
+        if d.is_dir():
+            figs = load_figures(d)
+            if figs:
+                out[p.name] = {stem: doc.get("numbers", {}) for stem, doc in figs.items()}
+    return out
+
+
+def figure_meta(root="figures") -> dict[str, dict]:
+    """{preset: what its figure documents say beside their numbers}: ``n_runs``, ``n_grains``,
+    ``seeds``, ``history`` (the label, "fresh" without one), ``engine`` ("lammps" for the DEM,
+    "cd" otherwise) and ``cost`` (the runs' own cost record, ``ensemble_data.ensemble_cost``:
+    mean sweeps and DEM steps, median wall seconds of the runs timed whole), of every preset
+    whose figures directory holds a Fig. 2 document."""
+    import json
+
+    out = {}
+    for p in cfgmod.PRESET_TABLE:
+        f = Path(root).parent / p.figures / "fig2_avalanche_criterion.json"
+        if f.is_file():
+            out[p.name] = _meta(json.loads(f.read_text()))
+    return out
+
+
+def _meta(doc: dict) -> dict:
+    return {"n_runs": doc.get("n_runs"), "n_grains": doc.get("n_grains"), "seeds": doc.get("seeds") or [],
+            "history": (doc.get("history") or {}).get("label") or "fresh",
+            "engine": doc.get("engine") or "cd", "cost": doc.get("cost") or {}}
+
+
+def populations(fig2: dict) -> dict:
+    """The two populations Fig. 2b fits to log10 of the lost fraction, in lost fractions: the
+    ``lower`` and ``upper`` means, the share of the lower one above the cutoff and of the upper
+    one below it (``judging.wrong_side``), ``separated`` (both shares at most
+    ``judging.SEPARATION``: the cutoff_in_gap claim's rule), and the cutoff as a number of
+    contacts of a mean frame (``cutoff`` x ``n_active_mean``); {} without a fit."""
+    import math
+
+    from .judging import SEPARATION, num, wrong_side
+
+    b = fig2.get("lost_bimodality") or {}
+    means = b.get("means") or []
+    if len(means) != 2:
+        return {}
+    cutoff = num(fig2.get("cutoff"))
+    above, below = wrong_side(b, cutoff)
+    return {"lower": 10.0 ** num(means[0]), "upper": 10.0 ** num(means[1]),
+            "lower_above": above, "upper_below": below,
+            "separated": bool(above <= SEPARATION and below <= SEPARATION),
+            "cutoff_contacts": cutoff * num(fig2.get("n_active_mean")) if math.isfinite(cutoff) else math.nan}
+
+
+def angles(per_run) -> dict:
+    """A per-run list of angles (None where a run has none), summarized: ``runs``, ``n`` (runs
+    with one), ``values`` (theirs, sorted), ``min``, ``max``, ``median`` (of those with one;
+    None without any) and ``none`` (runs without one)."""
+    import statistics
+
+    per = list(per_run or [])
+    got = sorted(float(v) for v in per if v is not None)
+    return {"runs": len(per), "n": len(got), "none": len(per) - len(got), "values": got,
+            "min": got[0] if got else None, "max": got[-1] if got else None,
+            "median": statistics.median(got) if got else None}
+
+
+def derived(root="figures") -> dict[str, dict]:
+    """{preset: numbers derived from its committed Fig. 2 document alone}: ``populations``
+    (:func:`populations`), ``onset``, ``slide``, ``avalanche`` (:func:`angles` of its first 2%
+    onsets, first sustained flows and avalanche angles per run), ``quiet_past`` (runs whose first
+    onset comes at or after 14.4 deg, the paper's earliest window of Fig. 5, or never: the
+    preparation study's ``n_runs_quiet_past``) and ``slide_after_avalanche`` (:func:`angles` of
+    each run's first sustained flow minus its avalanche angle, over the runs with both)."""
+    from tiltpile.paper_values import QUIET_DEG
+
+    QUIET_PAST_DEG = QUIET_DEG.value      # as the preparation study counts its runs
+    figs = figure_numbers(root)
+    out = {}
+    for name, f in figs.items():
+        n = f.get("fig2_avalanche_criterion")
+        if not n:
+            continue
+        onsets = n.get("theta_m_per_run") or []
+        both = [(s, a) for s, a in zip(n.get("theta_slide_per_run") or [], n.get("theta_avalanche_per_run") or [])
+                if s is not None and a is not None]
+        out[name] = {"populations": populations(n), "onset": angles(onsets),
+                     "slide": angles(n.get("theta_slide_per_run")),
+                     "avalanche": angles(n.get("theta_avalanche_per_run")),
+                     "quiet_past": sum(1 for v in onsets if v is None or v >= QUIET_PAST_DEG),
+                     "slide_after_avalanche": angles([s - a for s, a in both])}
+    return out
+
+
+def same_piles(root="figures") -> dict[str, dict]:
+    """{preset: its committed pile-against-pile study} (``<figures>/same-piles/same_piles.json``
+    of ``tiltpile same-piles``: the history-rate checks below ``paper-fast`` and ``paper-5x``, the
+    engines' comparisons below the DEM presets), each with what the templates read:
+    ``ref``, ``label``, ``seeds``, ``n_moved``, ``n_with_error``, ``null`` (None where not
+    measured) as the study holds them; ``rows`` {per-seed number: {"ref", "value" (each side's
+    mean over the seeds), "diff", "low", "high" (the mean paired difference and its interval),
+    "n" (seeds with both), "ratio" (value / ref)}}; ``sides`` {label: {figure stem: numbers}} and
+    ``meta`` {label: :func:`figure_meta`'s entry} of the figure documents the study wrote of each
+    side; ``populations`` {label: :func:`populations` of that side's Fig. 2}."""
+    import json
+    import math
+
+    from .document import load_figures
+    from .engines import _mean
+    from .judging import num
+
+    out = {}
+    for p in cfgmod.PRESET_TABLE:
+        d = Path(root).parent / p.figures / "same-piles"
+        f = d / "same_piles.json"
+        if not f.is_file():
+            continue
+        study = json.loads(f.read_text())
+        pp = study.get("pile_against_pile") or {}
+        rows = {}
+        for key, s in (pp.get("per_seed") or {}).items():
+            diff = (pp.get("difference") or {}).get(key) or {}
+            ref, value = _mean(s.get("ref") or []), _mean(s.get("value") or [])
+            rows[key] = {"ref": ref, "value": value, "diff": num(diff.get("mean")),
+                         "low": num(diff.get("ci_low")), "high": num(diff.get("ci_high")),
+                         "n": diff.get("n", 0),
+                         "ratio": value / ref if ref and math.isfinite(ref) else math.nan}
+        sides, meta, pops = {}, {}, {}
+        for label in (study.get("ref"), study.get("label")):
+            figs = load_figures(d / label) if label and (d / label).is_dir() else {}
+            if figs:
+                sides[label] = {stem: doc.get("numbers", {}) for stem, doc in figs.items()}
+                meta[label] = _meta(figs.get("fig2_avalanche_criterion") or next(iter(figs.values())))
+                pops[label] = populations(sides[label].get("fig2_avalanche_criterion") or {})
+        out[p.name] = {"ref": study.get("ref"), "label": study.get("label"),
+                       "seeds": study.get("seeds") or [], "n_moved": study.get("n_moved"),
+                       "n_with_error": study.get("n_with_error"), "null": study.get("null"),
+                       "rows": rows, "sides": sides, "meta": meta, "populations": pops}
+    return out
+
+
+def definitions(root="figures") -> dict[str, dict]:
+    """{preset: its committed definitions study} (``definitions.json`` of ``tiltpile
+    definitions``: ``figures/definitions.json`` of the default piles, ``figures/paper-fast/`` at
+    4000 grains), each {"n_runs", "n_grains", "seeds" (the piles the study read; [] where it does
+    not say), "labels" {definition key: label}, "figs" {definition key: {figure stem: numbers}}},
+    the definitions in the study's order."""
+    from . import definitions as _definitions
+
+    out = {}
+    for p in cfgmod.PRESET_TABLE:
+        doc = _definitions.load(Path(root).parent / p.figures)
+        if not doc:
+            continue
+        out[p.name] = {"n_runs": doc.get("n_runs"), "n_grains": doc.get("n_grains"),
+                       "seeds": sorted(doc.get("seeds") or []),
+                       "labels": {d["key"]: d["label"] for d in doc["definitions"]},
+                       "figs": {d["key"]: {stem: f.get("numbers", {}) for stem, f in d["documents"].items()}
+                                for d in doc["definitions"]}}
+    return out
+
+
+#: the per-run numbers compared between two histories of the same amplitude at different rates
+#: (:func:`preparation`'s ``between``)
+BETWEEN = ("theta_first_onset", "z_quiet")
+
+
+def _history_key(label: str, pretilt) -> str:
+    """A preparation ensemble's short name, as ``make preparation PREP_HISTORIES`` names them:
+    "fresh", "cyc<amplitude>", "cyc<amplitude>r<N>" for a history at N times the ramp's rate."""
+    if not pretilt:
+        return "fresh"
+    amp = max(abs(float(x)) for x in pretilt)
+    m = re.search(r"at (\d+(?:\.\d+)?)x rate", label)
+    return f"cyc{amp:g}" + (f"r{m.group(1)}" if m else "")
+
+
+def preparation(root="figures") -> dict[str, dict]:
+    """The committed preparation studies, {"default": ``figures/preparation.json`` (1000 grains),
+    "paper": ``figures/paper/preparation.json`` (4000 grains)} (those present), each {"reference":
+    the short name of the reference ensemble, "ensembles": {short name: the study's numbers of
+    that ensemble (its means, intervals, ``per_run``, ``repose``, ...) with its ``label`` and its
+    runs' ``cost``}, "differences": {short name: the study's differences from the reference},
+    "between": {(faster, slower) as "faster:slower": {number: interval}}}. Short names:
+    :func:`_history_key`. ``between`` compares each history run faster than the ramp with the same
+    history at the ramp's rate, by the study's own interval (``stats.bootstrap.diff_ci`` of the
+    per-run values, its seed): the ``BETWEEN`` numbers."""
+    import json
+
+    from tiltpile.analysis.stats.bootstrap import diff_ci
+
+    out = {}
+    for name in ("default", "paper"):
+        p = Path(root).parent / cfgmod.preset_info(name).figures / "preparation.json"
+        if not p.is_file():
+            continue
+        doc = json.loads(p.read_text())
+        n = doc.get("numbers") or {}
+        keys = {e["label"]: _history_key(e["label"], e.get("pretilt_deg")) for e in doc.get("ensembles", [])}
+        cost = {e["label"]: e.get("cost") or {} for e in doc.get("ensembles", [])}
+        ens = {keys.get(lab, lab): {**e, "label": lab, "cost": cost.get(lab, {})}
+               for lab, e in (n.get("ensembles") or {}).items()}
+        between = {}
+        for k, e in ens.items():
+            base = re.sub(r"r[\d.]+$", "", k)
+            if base != k and base in ens:
+                between[f"{k}:{base}"] = {q: diff_ci(e["per_run"][q], ens[base]["per_run"][q]) for q in BETWEEN}
+        out[name] = {"reference": keys.get(n.get("reference"), n.get("reference")), "ensembles": ens,
+                     "differences": {keys.get(lab, lab): d for lab, d in (n.get("differences") or {}).items()},
+                     "between": between}
+    return out
+
+
 def _environment():
     from .main import _environment as env
 
@@ -68,11 +294,17 @@ def _environment():
 
 def render_all(root="figures") -> dict[str, str]:
     """{block name: its Markdown} of every template ``templates/<prefix>_<name>.md.j2`` of a
-    document's prefix (``DOCUMENTS``)."""
+    document's prefix (``DOCUMENTS``), rendered with the context of the module docstring."""
     from .main import context
 
     env = _environment()
-    ctx = {**context(root), "presets": presets(root)}
+    ctx = {**context(root), "presets": presets(root), "figs": figure_numbers(root),
+           "meta": figure_meta(root), "derived": derived(root), "same_piles": same_piles(root),
+           "preparation": preparation(root), "definitions_study": definitions(root),
+           # docs/cli.md's keys and the presets' pile depths (tiltpile config prints the same)
+           "config_keys": cfgmod.describe_keys(),
+           "pile_depths": [{"name": p.name, **cfgmod.describe_depth(cfgmod.load(p.name))}
+                           for p in cfgmod.PRESET_TABLE]}
     names = [n[:-len(".md.j2")] for n in env.list_templates() if n.endswith(".md.j2")
              and n.split("_")[0] in DOCUMENTS.values()]
     return {n: env.get_template(f"{n}.md.j2").render(**ctx).rstrip("\n") for n in names}
