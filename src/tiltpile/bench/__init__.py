@@ -10,6 +10,8 @@ nothing when imported (``python -m tiltpile.bench`` lists them, from the package
                        ``scaling``, ``plots``), written to figures/performance/
 ``solver_micro``       ns per contact update of each sweep order, one process
 ``solver_variants``    sweeps, cost and true error of NLGS variants while tilting
+``solver_frames``      z, n_m and sliding contacts of one step re-solved at each sweep cap, order
+                       and start (frames of a run, or bench piles): ``docs/solver-frames.md``
 ``compare_ensembles``  onset, z and n_m of ensembles that differ in one setting
 ``guard``              what a cheaper setting costs against how far it moves the figure numbers
 ``kill_resume``        how often a SIGKILL at a random moment leaves a run resumable (the frame log)
