@@ -488,6 +488,26 @@ definition-records: | $(STAMP)
 	$(ANALYSIS_ENV) $(PY) -m tiltpile definitions $(DATA) --write-records $(BASE_FIGURES)/definitions \
 	  --g $(DEF_G) $(if $(filter all,$(DEF_KEYS)),,--only $(DEF_KEYS)) $(if $(WORKERS),--workers $(WORKERS)) --quiet
 
+# `make solver-study [SOLVER_DATA=/path] [SOLVER_FIGURES=figures/solver-study] [SOLVER_RUNS=6] [WORKERS=W]
+# [ONLY=S1,S2] [NULL=K] [RECORDS_ONLY=1]`: the solver's choice (`tiltpile solver-study`, docs/cli.md):
+# one ensemble of the default preset per NLGS setting in SOLVER_DATA/<setting>/, each compared with
+# the committed setting (SOLVER_DATA/reference/) pile against pile and claim by claim; the chart,
+# JSON and report section in SOLVER_FIGURES. Resumable across sessions; RECORDS_ONLY=1 runs nothing
+# and writes the records of what is finished, so that they can be committed.
+SOLVER_DATA ?= data/solver-study
+SOLVER_FIGURES ?= figures/solver-study
+SOLVER_RUNS ?= 6
+SOLVER_ARGS = --data '$(SOLVER_DATA)' --figures '$(SOLVER_FIGURES)' --runs $(SOLVER_RUNS) \
+              $(if $(WORKERS),--workers $(WORKERS)) $(if $(ONLY),--only '$(ONLY)') $(if $(NULL),--null $(NULL))
+.PHONY: solver-study
+solver-study: | $(STAMP)
+ifeq ($(RECORDS_ONLY),)
+	$(PY) -m tiltpile solver-study $(SOLVER_ARGS) --runs-only
+	$(ANALYSIS_ENV) $(PY) -m tiltpile solver-study $(SOLVER_ARGS)
+else
+	$(ANALYSIS_ENV) $(PY) -m tiltpile solver-study $(SOLVER_ARGS) --records-only
+endif
+
 # `make study KEY=section.key VALUES="v1 v2 ..." [PRESET=default] [RUNS=M] [WORKERS=W] [NAME=name]
 #             [HISTORY=preset|repose+D] [DATA=/path/outside/the/checkout] [STUDY_FIGURES=dir]`:
 # a parameter study (`tiltpile study`, docs/cli.md "How to study another parameter"). For each

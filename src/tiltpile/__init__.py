@@ -12,7 +12,7 @@ same protocol in LAMMPS), its output paths checked (``paths``) and its health ju
 finished run), run one (``runner``; or imported from another code's frames, ``importers``) or
 many at a time (``ensemble``), analysed (``analysis``),
 drawn (``figures``) and judged against the paper (``report``), tilted on to its repose angle
-(``repose``), measured (``bench``), looked at (``view``)
+(``repose``), measured (``bench``), studied beside the paper (``studies``), looked at (``view``)
 and driven from the command line
 (``cli``). Where each fact lives, and how to add to the code: docs/architecture.md.
 
@@ -32,6 +32,7 @@ LAYERS = (
     ("ensemble", "analysis"),             # many runs on dask; observables from run files
     ("figures", "report", "bench",        # the paper's figures, the report, measurements,
      "repose"),                           # the repose angle of finished runs
+    ("studies",),                         # the side studies, one module each
     ("view",),                            # pictures and movies of one run
     ("cli",),                             # tiltpile <command>
     ("__main__",),                        # python -m tiltpile

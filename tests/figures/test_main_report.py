@@ -102,3 +102,15 @@ def test_report_on_one_scale_needs_its_out(tmp_path):
                        cwd=ROOT, capture_output=True, text=True)
     assert r.returncode == 2 and len(r.stderr.strip().splitlines()) == 1
     assert "--out" in r.stderr
+
+
+def test_the_solver_studys_section_is_included_once_written(tmp_path):
+    root = tmp_path / "figures"
+    shutil.copytree(ROOT / "figures" / "paper", root / "paper",
+                    ignore=shutil.ignore_patterns("records", "*.png", "*.md"))
+    assert "Not yet computed: `make solver-study`" in rm.render(root)
+    (root / rm.SOLVER_SECTION).parent.mkdir(parents=True)
+    (root / rm.SOLVER_SECTION).write_text("\n## What the solver's choice changes\n\nsection body\n")
+    text = rm.render(root)
+    assert "section body" in text and "Not yet computed" not in text
+    assert text.count("## What the solver's choice changes") == 1

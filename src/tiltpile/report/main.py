@@ -35,6 +35,9 @@ SCALES = ("default-fresh", "default", "paper-fresh", "paper", "paper-fast", "pap
 #: a verdict's rank when the best and the worst over the contact definitions are picked
 _RANK = {AGREES: 0, INCONCLUSIVE: 1, DISAGREES: 2}
 TEMPLATE = "main.md.j2"
+#: the solver study's report section, as `tiltpile solver-study` writes it (tiltpile.studies.solver
+#: renders it from its JSON; the report, a layer below, includes the text)
+SOLVER_SECTION = Path("solver-study") / "solver_study.md"
 
 
 def headline(ours: str) -> str:
@@ -224,6 +227,7 @@ def context(root="figures", claims: list[Claim] | None = None) -> dict:
                      "dem_small": [e["other"].get(c.key, MISSING) for e in small_dem]})
     counts = {v: sum(1 for r in rows if r["verdict"] == v and not r["beyond"])
               for v in (AGREES, DISAGREES, INCONCLUSIVE)}
+    solver = Path(root) / SOLVER_SECTION
     friction = _friction.load(scale_dirs(root)[SMALL])
     mc = friction["numbers"].get("mohr_coulomb") if friction else None
     return {"paper_doc": paper_doc, "rows": rows, "counts": counts,
@@ -232,6 +236,7 @@ def context(root="figures", claims: list[Claim] | None = None) -> dict:
             "engines": engines, "big_dem": big_dem, "small_dem": small_dem,
             "rates": _rates(root, claims),
             "friction": {"answer": _friction.answer(mc)} if friction else None,
+            "solver": solver.read_text().strip("\n") if solver.is_file() else None,
             "verdicts": (AGREES, DISAGREES, INCONCLUSIVE, MISSING)}
 
 
