@@ -92,33 +92,39 @@ def test_the_report_judges_each_definition_as_the_figures(tmp_path):
     assert tally[AGREES] == sum(1 for _, verdict in v["force"].values() if verdict == AGREES)
 
 
-def test_the_report_cites_the_study_in_the_notes_of_disagreeing_claims(tmp_path):
-    """With figures/definitions.json beside the figures, each disagreeing claim's note says what
-    its verdict depends on, and the report has the section; without it, neither."""
-    from tiltpile.report.document import write_report
+def test_the_reports_take_the_definitions_axis_from_the_study(tmp_path):
+    """With a definitions study beside the figures, paper/STUDIES.md has its section and the main
+    report's best and worst definition of each claim are the study's verdicts; without it,
+    neither."""
+    from tiltpile.report.document import render_studies
+    from tiltpile.report.main import context
 
     figs = tmp_path / "figures"
-    figs.mkdir()
+    (figs / "paper").mkdir(parents=True)
     for p in (ROOT / "figures").glob("fig*.json"):
         shutil.copy(p, figs / p.name)
-    plain = write_report(figs, tmp_path / "plain.md").read_text()
-    assert "What the disagreements depend on" not in plain
+    for p in (ROOT / "figures" / "paper").glob("fig*.json"):
+        shutil.copy(p, figs / "paper" / p.name)
+    assert "What the disagreements depend on" not in render_studies(figs)
+    assert context(figs)["definitions"]["4000"] == {}
     a = load_figures(figs)
     doc = {"n_runs": 6, "n_grains": 1000, "fit": {"g": 0.002, "target": 3.5},
            "definitions": [{"key": "force", "label": "force (ours)", "what": "ours", "params": {},
                             "notebook": {}, "documents": a}]}
     (figs / "definitions.json").write_text(json.dumps(doc))
-    text = write_report(figs, tmp_path / "with.md").read_text()
-    assert "## What the disagreements depend on (6 runs of 1000 grains)" in text
-    notes = text.split("## Notes")[1].split("\n## ")[0]
-    n_dis = sum(1 for c, _, verdict, _, _ in judge_all(a, CLAIMS) if verdict == DISAGREES)
-    assert notes.count("By definition (") == n_dis > 0
-    # the 4000-grain study (paper-fast's piles) is cited in the same sentence
-    assert "at 4000 grains" not in notes
+    assert "## What the disagreements depend on (6 runs of 1000 grains)" in render_studies(figs)
     (figs / "paper-fast").mkdir()
-    (figs / "paper-fast" / "definitions.json").write_text(json.dumps(dict(doc, n_runs=16, n_grains=4000)))
-    notes = write_report(figs, tmp_path / "with.md").read_text().split("## Notes")[1].split("\n## ")[0]
-    assert notes.count("; at 4000 grains (16 runs): disagrees under every definition tried (1).") == n_dis
+    (figs / "paper-fast" / "definitions.json").write_text(
+        json.dumps(dict(doc, n_runs=16, n_grains=4000, seeds=list(range(2, 18)))))
+    ctx = context(figs)
+    d4 = ctx["definitions"]["4000"]
+    assert d4["piles"] == 16 and d4["seeds"] == "2-17"
+    verdicts = {c.key: v for c, _, v, _, _ in judge_all(a, CLAIMS)}
+    for r in ctx["rows"]:
+        e = r["definitions"]
+        if verdicts[r["key"]] in ("agrees", "disagrees", "inconclusive"):
+            assert e["best"] == e["worst"] == (verdicts[r["key"]], ["force (ours)"]), r["key"]
+    assert any(v == DISAGREES for v in verdicts.values())
 
 
 def test_bad_input_stops_in_one_line_with_nothing_written(tmp_path, capsys):
