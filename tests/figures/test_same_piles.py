@@ -163,13 +163,13 @@ def test_workers_compute_the_same_study(ens, tmp_path):
     for w in (1, 2):
         table, na, nb = sp.ensemble_against_ensemble(ens, shifted, FAST, progress=lines[w].append,
                                                      workers=w)
-        null = sp.null_moved(ens, shifted, table, 3, stems=FAST, scratch=tmp_path / str(w),
+        null = sp.null_moved(ens, shifted, table, "exact", stems=FAST, scratch=tmp_path / str(w),
                              progress=lines[w].append, workers=w)
         docs[w] = json.dumps(style.jsonable([table.to_dict("records"), na, nb, null]),
                              sort_keys=True)
-    assert docs[1] == docs[2] and null["flips"] == 3 and null["observed"] > 0
-    assert lines[1] == lines[2] and sum("null: flip" in x for x in lines[2]) == 3
-    assert {p.name for p in (tmp_path / "2").iterdir()} == {"flip0", "flip1", "flip2"}
+    assert docs[1] == docs[2] and null["flips"] == 4 and null["observed"] > 0
+    assert lines[1] == lines[2] and sum("null: flip" in x for x in lines[2]) == 4
+    assert {p.name for p in (tmp_path / "2").iterdir()} == {"flip0", "flip1", "flip2", "flip3"}
     with pytest.raises(ValueError, match="workers must be at least 1"):
         next(sp.documents_each([("x", ens)], FAST, workers=0))
 
@@ -200,6 +200,9 @@ def test_pile_against_pile(ens):
     assert all(d == 0.0 for d in pp["per_seed"]["n_onsets"]["difference"])
     assert set(pp["per_seed"]) == set(sp.PER_SEED)
     assert pp["difference"]["ke_quiet"]["mean"] == 0.0
+    # a shift the same on every seed has no spread: the smallest detectable shift is ~0
+    assert pp["difference"]["z_quiet"]["sd"] == pytest.approx(0.0, abs=1e-12)
+    assert pp["difference"]["n_onsets"]["min_detectable"] == 0.0
 
 
 def test_quiet_kinetic_energy_is_the_median_over_quiet_frames_only(ens):
@@ -239,4 +242,170 @@ def test_command_refuses_bad_input(smoke_ensemble, tmp_path, capsys):
     assert main(["same-piles", str(smoke_ensemble), str(two), "--out", str(out), "--workers",
                  "0", "--label", "two"]) == 2
     assert "--workers must be 1 or more, got 0" in capsys.readouterr().err
+    assert not out.exists()
+
+
+# ----------------------------------------------------------------------------------------------
+# the null: exact enumeration, its Monte-Carlo error, the decision as data
+
+
+def test_exact_flips_are_every_distinct_exchange():
+    """2^(n - 1) exchanges, the first seed never exchanged, the first one none at all; with
+    their complements, every one of the 2^n exactly once."""
+    flips = sp.exact_flips(4)
+    assert len(flips) == 8 and not any(f[0] for f in flips) and not flips[0].any()
+    both = {tuple(bool(v) for v in f) for f in flips} | {tuple(bool(v) for v in ~f) for f in flips}
+    assert len(both) == 16
+    assert sp.canonical([True, False, True, True]) == (False, True, False, False)
+    assert all(sp.canonical(f) == sp.canonical(~f) for f in sp.random_flips(5, 20))
+    assert len(sp.exact_flips(1)) == 1
+    with pytest.raises(ValueError, match="no exchange of 0 seeds"):
+        sp.exact_flips(0)
+    # the random draws of the committed 40 are the first 40 of 500
+    assert all((u == v).all() for u, v in zip(sp.random_flips(16, 40), sp.random_flips(16, 500)))
+
+
+def test_null_plan():
+    """auto: exact up to 256 exchanges (9 seeds), else 500 random; exact refused above 4096
+    exchanges; a number of flips must be a positive integer."""
+    assert sp.null_plan("auto", 8) == ("exact", 128)
+    assert sp.null_plan("auto", 9) == ("exact", 256)
+    assert sp.null_plan("auto", 10) == ("random", 500)
+    assert sp.null_plan("auto", 16) == ("random", 500)
+    assert sp.null_plan("exact", 13) == ("exact", 4096)
+    assert sp.null_plan(40, 16) == ("random", 40)
+    with pytest.raises(ValueError, match="more than 4096: give a number of random ones"):
+        sp.null_plan("exact", 14)
+    with pytest.raises(ValueError, match="flips must be at least 1, got 0"):
+        sp.null_plan(0, 8)
+    for bad in ("all", True, 2.5, None):
+        with pytest.raises(ValueError, match="'exact', 'auto' or a number"):
+            sp.null_plan(bad, 8)
+
+
+def test_monte_carlo_error_and_the_decision():
+    """sqrt(p (1 - p) / K): 0.034 from the committed 40 exchanges at p = 0.049, below 0.01 from
+    500 on; p < 0.05 is "moved", else "no difference detected", firm when p is more than two
+    Monte-Carlo errors from 0.05."""
+    assert sp.mc_error(2 / 41, 40) == pytest.approx(0.0341, abs=5e-4)
+    assert sp.mc_error(0.05, 500) == pytest.approx(math.sqrt(0.05 * 0.95 / 500), rel=1e-15)
+    assert sp.mc_error(0.05, sp.RANDOM_FLIPS) < sp.MC_ERROR_LIMIT < sp.mc_error(0.05, 400)
+    assert sp.decide(2 / 41, sp.mc_error(2 / 41, 40)) == {
+        "alpha": 0.05, "decision": "moved", "decision_firm": False}
+    assert sp.decide(0.05, 0.0)["decision"] == "no difference detected"
+    assert sp.decide(6 / 128, 0.0) == {"alpha": 0.05, "decision": "moved", "decision_firm": True}
+    assert sp.decide(0.24, sp.mc_error(0.24, 500))["decision_firm"]
+
+
+def test_min_detectable():
+    """(z_0.975 + z_0.8) sd / sqrt(n) = 2.80 sd / sqrt(n) over the finite differences; NaN for
+    fewer than two."""
+    assert sp.Z_DETECT == pytest.approx(1.959964 + 0.841621, abs=1e-6)
+    d = [0.5, -1.0, 2.0, 1.5, np.nan]
+    sd, mdd = sp.min_detectable(d)
+    assert sd == pytest.approx(np.std([0.5, -1.0, 2.0, 1.5], ddof=1), rel=1e-15)
+    assert mdd == pytest.approx(2.801585 * sd / 2.0, rel=1e-6)
+    assert all(math.isnan(v) for v in sp.min_detectable([1.0, np.nan]))
+
+
+def test_the_table_gives_the_smallest_detectable_shift(ens):
+    """Per figure number (SIGMA_LIMIT + z_0.8) times its combined error: 2.84 of them."""
+    table, _, _ = sp.ensemble_against_ensemble(ens, raised_z(ens), ("fig2_avalanche_criterion",))
+    comb = np.hypot(table["se_ref"], table["se"])
+    assert np.allclose(table["min_detectable"], 2.8416212335729144 * comb, rtol=1e-15,
+                       equal_nan=True)
+    assert np.isfinite(table["min_detectable"]).any()
+
+
+def unevenly_shifted(ens):
+    """``ens`` with seed-dependent shifts of z and n_m: exchanges move different numbers."""
+    f = ens.frames.copy()
+    for k, s in enumerate(ens.seeds):
+        run = f["run"] == s
+        f.loc[run, "z"] += 0.05 * (k + 1)
+        f.loc[run, "n_m"] -= 0.01 * (len(ens.seeds) - k)
+    return replace(ens, frames=f)
+
+
+def test_a_flip_and_its_complement_count_alike(ens, tmp_path):
+    """Exchanging the complement gives the same two ensembles in the other order: the same
+    documents swapped, so the same count, for every exchange of the 3 smoke seeds."""
+    other = unevenly_shifted(ens)
+    stems = ("fig2_avalanche_criterion",)
+    table, _, _ = sp.ensemble_against_ensemble(ens, other, stems)
+    comb = {f"{r['figure']}.{r['key']}": math.hypot(r["se_ref"], r["se"])
+            for r in table.to_dict("records")}
+    counts = set()
+    for f in sp.exact_flips(len(ens.seeds)):
+        x, y = sp.mixed(ens, other, f, tmp_path / "f")
+        xc, yc = sp.mixed(ens, other, ~f, tmp_path / "c")
+        assert xc.frames.equals(y.frames) and yc.frames.equals(x.frames)
+        dx, dy = (sp._all_scalars(sp.figure_documents(e, stems)) for e in (x, y))
+        dxc, dyc = (sp._all_scalars(sp.figure_documents(e, stems)) for e in (xc, yc))
+        assert json.dumps(dxc) == json.dumps(dy) and json.dumps(dyc) == json.dumps(dx)
+        n = sp.moved_count(dx, dy, comb)
+        assert sp.moved_count(dxc, dyc, comb) == n
+        counts.add(n)
+    assert len(counts) > 1          # the exchanges do differ
+
+
+def test_the_exact_null(ens, tmp_path):
+    """All 4 distinct exchanges of 3 seeds, each evaluated once, the first the real pair (its
+    count the observed one); p = #(count >= observed) / 4 with no Monte-Carlo error; random
+    draws reuse the count of the exchange they repeat (or its complement)."""
+    other = unevenly_shifted(ens)
+    stems = ("fig2_avalanche_criterion",)
+    table, _, _ = sp.ensemble_against_ensemble(ens, other, stems)
+    lines = []
+    null = sp.null_moved(ens, other, table, "exact", stems=stems, scratch=tmp_path / "x",
+                         progress=lines.append)
+    assert null["method"] == "exact" and null["flips"] == null["evaluated"] == 4
+    assert null["seed"] is None and null["mc_error"] == 0.0
+    c = np.array(null["counts"])
+    assert c[0] == null["observed"] == int(table["moved"].sum()) > 0
+    assert null["p_value"] == (c >= null["observed"]).sum() / 4
+    assert null["decision"] == ("moved" if null["p_value"] < 0.05 else "no difference detected")
+    assert null["decision_firm"] and sum("null: flip" in x for x in lines) == 4
+    assert sp.null_moved(ens, other, table, "auto", stems=stems, scratch=tmp_path / "a") == null
+    by_flip = {sp.canonical(f): n for f, n in zip(sp.exact_flips(3), null["counts"])}
+    rnd = sp.null_moved(ens, other, table, 9, stems=stems, scratch=tmp_path / "r")
+    assert rnd["method"] == "random" and rnd["flips"] == 9 and rnd["evaluated"] <= 4
+    assert rnd["counts"] == [by_flip[sp.canonical(f)] for f in sp.random_flips(3, 9)]
+    p = (1 + sum(n >= rnd["observed"] for n in rnd["counts"])) / 10
+    assert rnd["p_value"] == p and rnd["mc_error"] == pytest.approx(math.sqrt(p * (1 - p) / 9))
+
+
+def test_memoized_fits_give_the_same_documents(ens):
+    """Fig. 5 with its fits memoized: the same documents, bit for bit, a second evaluation
+    computes no fit anew, and the figures' own function is back after the block."""
+    from tiltpile.figures import fig5
+    real = fig5._fit
+    stems = ("fig5_cluster_sizes",)
+    plain = sp.figure_documents(ens, stems)
+    with sp.fit_memo():
+        assert fig5._fit is not real
+        first = sp.figure_documents(ens, stems)
+        held = len(sp._FIT_CACHE)
+        with sp.fit_memo():                       # nested: the same memo
+            again = sp.figure_documents(ens, stems)
+        assert held > 0 and len(sp._FIT_CACHE) == held and fig5._fit is not real
+    assert fig5._fit is real and sp._FIT_CACHE is None
+    assert json.dumps(first, sort_keys=True) == json.dumps(plain, sort_keys=True)
+    assert json.dumps(again, sort_keys=True) == json.dumps(plain, sort_keys=True)
+
+
+def test_null_values_are_checked_before_anything_runs(smoke_ensemble, tmp_path, capsys):
+    from tiltpile.cli import main
+    from tiltpile.cli._common import ConfigError
+    from tiltpile.cli.same_piles import null_spec
+    assert [null_spec(v) for v in ("none", "0", "exact", "AUTO", "500")] == [
+        None, None, "exact", "auto", 500]
+    out = tmp_path / "cmp"
+    for bad in ("-3", "all", "2.5", ""):
+        with pytest.raises(ConfigError, match="--null must be exact, auto, none or a number"):
+            null_spec(bad)
+        assert main(["same-piles", str(tmp_path / "nope"), str(smoke_ensemble), "--out", str(out),
+                     "--null", bad]) == 2
+        err = capsys.readouterr().err.strip()
+        assert "--null must be exact, auto, none or a number" in err and "\n" not in err
     assert not out.exists()

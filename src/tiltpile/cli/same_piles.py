@@ -25,10 +25,14 @@ def add_parser(sub) -> None:
     p.add_argument("--seeds", type=int, default=None, metavar="N",
                    help="the first N common seeds only (default: every common seed; at "
                         "least 2, and 3 for the figure numbers' errors and --null)")
-    p.add_argument("--null", type=int, default=0, metavar="K",
-                   help="also count the figure numbers that move by chance: K random exchanges "
-                        "of the two runs of each seed, each scored like the real pair (two "
-                        "evaluations of the figures per exchange; default 0: none)")
+    p.add_argument("--null", default="none", metavar="exact|auto|K|none",
+                   help="also count the figure numbers that move by chance, exchanging the two "
+                        "runs of some seeds and scoring each exchange like the real pair (two "
+                        "evaluations of the figures per exchange), and decide by p < 0.05: "
+                        "'exact' all 2^(N-1) distinct exchanges of N seeds (p exact; at most "
+                        "4096), K random ones (p's Monte-Carlo error sqrt(p(1-p)/K): 0.0097 at "
+                        "p = 0.05 and K = 500), 'auto' exact up to 256 exchanges (9 seeds), else "
+                        "500 random; default none")
     p.add_argument("--workers", type=int, default=1, metavar="N",
                    help="processes evaluating the figures (default 1); the study is the same, "
                         "bit for bit, with any number")
@@ -67,6 +71,24 @@ def _preset_of(d: Path) -> str | None:
     return parent if parent in cfgmod.PRESETS else None
 
 
+def null_spec(text: str):
+    """``--null``'s value: None (none, 0), "exact", "auto" or a number K >= 1 of random
+    exchanges; ConfigError for anything else."""
+    t = str(text).strip().lower()
+    if t in ("none", "0"):
+        return None
+    if t in ("exact", "auto"):
+        return t
+    try:
+        k = int(t)
+    except ValueError:
+        k = None
+    if k is None or k < 1:
+        raise ConfigError(f"--null must be exact, auto, none or a number of random exchanges "
+                          f"K >= 1, got {text!r}")
+    return k
+
+
 def run(args) -> int:
     """Validate both ensembles, the seeds and the output first, then run the study and write it."""
     from tiltpile.figures import same_piles as sp
@@ -74,8 +96,7 @@ def run(args) -> int:
 
     if args.workers < 1:
         raise ConfigError(f"--workers must be 1 or more, got {args.workers}")
-    if args.null < 0:
-        raise ConfigError(f"--null must be 0 or more, got {args.null}")
+    null = null_spec(args.null)
     if args.seeds is not None and args.seeds < sp.MIN_SEEDS:
         raise ConfigError(f"--seeds must be at least {sp.MIN_SEEDS}, got {args.seeds}")
     if args.ref.resolve() == args.dir.resolve():
@@ -92,16 +113,21 @@ def run(args) -> int:
     if len(seeds) < sp.MIN_SEEDS:
         raise ConfigError(f"{args.ref} and {args.dir} share {len(seeds)} seeds: the comparison "
                           f"needs {sp.MIN_SEEDS} or more")
-    if args.null and len(seeds) < sp.JACKKNIFE_SEEDS:
+    if null and len(seeds) < sp.JACKKNIFE_SEEDS:
         raise ConfigError(f"--null {args.null}: on {len(seeds)} seeds no figure number has an "
                           f"error to move by; chance's count needs {sp.JACKKNIFE_SEEDS} or more")
+    if null:
+        try:
+            sp.null_plan(null, len(seeds))
+        except ValueError as exc:
+            raise ConfigError(f"--null {args.null}: {exc}") from None
     check_output(args.out / f"{sp.NAME}.json", "--out")
     ref, ens = sp.subset(ref, seeds), sp.subset(ens, seeds)
     say = None if args.quiet else (lambda line: print(f"tiltpile same-piles: {line}", file=sys.stderr,
                                                       flush=True))
     import tempfile
     with tempfile.TemporaryDirectory(prefix="tiltpile-same-piles-") as scratch:
-        doc = sp.study(ref, ens, ref_label, label, progress=say, null_flips=args.null,
+        doc = sp.study(ref, ens, ref_label, label, progress=say, null_flips=null or 0,
                        scratch=scratch, workers=args.workers)
     path = sp.write_study(doc, args.out)
     print(f"{label} against {ref_label} on {len(seeds)} seeds: {doc['n_moved']} of "
@@ -109,8 +135,10 @@ def run(args) -> int:
           f"{sp.SIGMA_LIMIT:g} standard errors ({doc['n_numbers']} numbers in all); {path}")
     if doc["null"]:
         n = doc["null"]
-        print(f"  by chance ({n['flips']} exchanges of each seed's two runs): median "
-              f"{n['median']:g}, 95th percentile {n['p95']:g}; p = {n['p_value']:.3f}")
+        how = (f"all {n['flips']} distinct exchanges" if n["method"] == "exact"
+               else f"{n['flips']} random exchanges")
+        print(f"  by chance ({how} of seeds' two runs): median {n['median']:g}, 95th percentile "
+              f"{n['p95']:g}; p = {n['p_value']:.4f} +- {n['mc_error']:.4f}: {n['decision']}")
     for c, d in doc["pile_against_pile"]["difference"].items():
         if math.isfinite(d["mean"]):
             print(f"  {c}: {d['mean']:+.3g} [{d['ci_low']:+.3g}, {d['ci_high']:+.3g}] over {d['n']} seeds")

@@ -26,16 +26,26 @@ This study says whether the second setting may stand in for the first (``tiltpil
 The figure documents of both ensembles on the common seeds are written beside the comparison, so
 that the report judges the paper's claims on each (``tiltpile.report``) and says whether every
 verdict is the same.
+
+How many numbers chance moves (:func:`null_moved`, ``--null``): the runs of each seed exchanged
+between the two sides, every exchange scored as the real pair is. All 2^(n - 1) distinct
+exchanges when that is affordable (``exact``), else K random ones, and a one-sided p value with
+its Monte-Carlo error; its decision is data: "moved" (p < ALPHA) or "no difference detected",
+which is a failure to reject, not a proof of equality. Beside it the smallest shift each check
+could have detected at this number of seeds (``min_detectable``, 80% power): per pile-against-pile
+number (:func:`min_detectable`) and per figure number (:func:`ensemble_against_ensemble`).
 """
 
 from __future__ import annotations
 
 import contextlib
+import hashlib
 import json
 import math
 import os
 from dataclasses import replace
 from pathlib import Path
+from statistics import NormalDist
 
 import numpy as np
 import pandas as pd
@@ -62,6 +72,17 @@ SIGMA_LIMIT = 2.0
 # the fewest common seeds compared (pile against pile, the figure numbers without an error) and
 # the fewest that give the figure numbers a jackknife error and chance's count (--null)
 MIN_SEEDS, JACKKNIFE_SEEDS = 2, 3
+# the null's decision: a p value below ALPHA says the figure numbers moved
+ALPHA = 0.05
+# --null auto: every distinct exchange when there are at most EXACT_LIMIT (up to 9 seeds: 2^8),
+# else RANDOM_FLIPS random ones, whose Monte-Carlo error of p is sqrt(0.05 0.95 / 500) = 0.0097
+# < MC_ERROR_LIMIT near p = ALPHA; --null exact is refused above EXACT_MAX exchanges (14 seeds)
+EXACT_LIMIT, RANDOM_FLIPS, EXACT_MAX, MC_ERROR_LIMIT = 256, 500, 4096, 0.01
+# the power at which the smallest detectable shift is given, and its normal quantiles:
+# Z_POWER = z_0.8 = 0.8416, Z_DETECT = z_0.975 + z_0.8 = 2.8016
+POWER = 0.8
+Z_POWER = NormalDist().inv_cdf(POWER)
+Z_DETECT = NormalDist().inv_cdf(1.0 - ALPHA / 2.0) + Z_POWER
 
 
 # ----------------------------------------------------------------------------------------------
@@ -190,7 +211,7 @@ def worker_pool(workers: int):
     One process's numpy keeps ~1.4 cores busy for no gain, and a forked worker keeps the threads
     its parent started with, so W such workers oversubscribe W cores; with one thread each, two
     workers compute a paper-scale comparison about twice as fast as one process
-    (docs/performance-log.md). The caller's environment is as it was after the block."""
+    (notes/performance-log.md). The caller's environment is as it was after the block."""
     import multiprocessing
     from concurrent.futures import ProcessPoolExecutor
 
@@ -200,22 +221,24 @@ def worker_pool(workers: int):
 
 
 def documents_each(jobs, stems=FIGURES, notebooks_dir="notebooks", workers: int = 1,
-                   progress=None):
+                   progress=None, evaluate=None):
     """:func:`figure_documents` of each ensemble of ``jobs``, an iterable of (progress line or
-    None, ensemble), yielded in the order of ``jobs``. A generator of jobs is advanced only as
+    None, ensemble), yielded in the order of ``jobs`` (``evaluate``: another module-level
+    function of the same arguments and result, e.g. :func:`_memo_documents`). A generator of jobs is advanced only as
     evaluations are due, so it makes its ensembles as they are needed. With ``workers`` > 1 they
     are computed in that many processes, at most two per worker made and waiting at a time; each
     document is a function of its ensemble alone (the figures' bootstraps draw from generators of
     fixed seeds), so the documents are those of one process, bit for bit. ``progress`` is called
     with a job's line as its evaluation starts (one process) or ends (several)."""
     say = progress or (lambda line: None)
+    evaluate = evaluate or figure_documents
     if workers < 1:
         raise ValueError(f"workers must be at least 1, got {workers}")
     if workers == 1:
         for line, e in jobs:
             if line:
                 say(line)
-            yield figure_documents(e, stems, notebooks_dir)
+            yield evaluate(e, stems, notebooks_dir)
         return
     import collections
 
@@ -230,7 +253,7 @@ def documents_each(jobs, stems=FIGURES, notebooks_dir="notebooks", workers: int 
             return docs
 
         for line, e in jobs:
-            waiting.append((line, pool.submit(figure_documents, e, stems, notebooks_dir)))
+            waiting.append((line, pool.submit(evaluate, e, stems, notebooks_dir)))
             if len(waiting) >= 2 * workers:
                 yield ready()
         while waiting:
@@ -291,7 +314,10 @@ def ensemble_against_ensemble(ref, ens, stems=FIGURES, notebooks_dir="notebooks"
     docstring). Returns (table, numbers_ref, numbers) where table has one row per number:
     figure, key, ref, value, shift, se_ref, se, sigma (shift / sqrt(se_ref^2 + se^2); 0 where
     the shift is 0, NaN where an error is), se_paired (jackknife of the shift, the same seed left
-    out of both), sigma_paired, moved (|sigma| > SIGMA_LIMIT); and the figure documents of both
+    out of both), sigma_paired, moved (|sigma| > SIGMA_LIMIT), min_detectable (the smallest shift
+    that moves the number with probability POWER: (SIGMA_LIMIT + z_0.8) sqrt(se_ref^2 + se^2) =
+    2.84 combined errors, the measured shift taken as normal about the true one with the combined
+    error as its sd and the far tail neglected; NaN without an error); and the figure documents of both
     on the common seeds ({stem: document}). ``progress``: called with a line per evaluation;
     ``workers``: processes evaluating the figures (:func:`documents_each`; the same table).
     With 2 common seeds no number has an error (NaN; the jackknife needs 3 runs)."""
@@ -335,6 +361,8 @@ def ensemble_against_ensemble(ref, ens, stems=FIGURES, notebooks_dir="notebooks"
                      "sigma_paired": _in_sigma(d, se_d[key])})
     t = pd.DataFrame(rows)
     t["moved"] = t["sigma"].abs() > SIGMA_LIMIT
+    t["min_detectable"] = (SIGMA_LIMIT + Z_POWER) * np.hypot(t["se_ref"].to_numpy(float),
+                                                             t["se"].to_numpy(float))
     return t, na, nb
 
 
@@ -378,11 +406,27 @@ def _nan(v) -> float:
     return math.nan if v is None else float(v)
 
 
+def min_detectable(differences) -> tuple[float, float]:
+    """(sd, smallest detectable mean difference) of per-seed paired differences (NaN dropped):
+    sd = their standard deviation (ddof 1) and (z_0.975 + z_0.8) sd / sqrt(n) = 2.80 sd / sqrt(n),
+    the true mean difference that a two-sided test at ALPHA = 0.05 on n seeds detects with power
+    0.8 (normal approximation; the t test on few seeds needs a little more). NaN for fewer than
+    2 finite differences."""
+    d = np.asarray(differences, float)
+    d = d[np.isfinite(d)]
+    if d.size < 2:
+        return math.nan, math.nan
+    sd = float(d.std(ddof=1))
+    return sd, Z_DETECT * sd / math.sqrt(d.size)
+
+
 def pile_against_pile(ref, ens, fig2_ref: dict, fig2: dict, confidence: float = 0.95) -> dict:
     """Per seed of the two ensembles (the same seeds, ``subset`` to them): each ``PER_SEED``
     number of both and their difference (``ens`` - ``ref``), and per number the mean difference
-    with a bootstrap interval over the seeds that have both values (``n``). fig2_ref, fig2: the
-    Fig. 2 numbers of each ensemble on these seeds (of :func:`figure_documents`)."""
+    with a bootstrap interval over the seeds that have both values (``n``), the differences' sd
+    and the smallest mean difference detectable on these seeds (``min_detectable``, 80% power:
+    :func:`min_detectable`). fig2_ref, fig2: the Fig. 2 numbers of each ensemble on these seeds
+    (of :func:`figure_documents`)."""
     ta, tb = per_seed(ref, fig2_ref), per_seed(ens, fig2)
     if list(ta["run"]) != list(tb["run"]):
         raise ValueError("pile against pile needs the same seeds in the same order")
@@ -391,10 +435,11 @@ def pile_against_pile(ref, ens, fig2_ref: dict, fig2: dict, confidence: float = 
         x, y = ta[c].to_numpy(float), tb[c].to_numpy(float)
         d = y - x
         ci = bootstrap_ci(d, confidence=confidence)
+        sd, mdd = min_detectable(d)
         out["per_seed"][c] = {"ref": x.tolist(), "value": y.tolist(), "difference": d.tolist()}
         out["difference"][c] = {"mean": ci["estimate"], "ci_low": ci["low"], "ci_high": ci["high"],
                                 "n": ci["n"], "median": float(np.nanmedian(d)) if np.isfinite(d).any()
-                                else math.nan}
+                                else math.nan, "sd": sd, "min_detectable": mdd}
     return out
 
 
@@ -439,54 +484,213 @@ def mixed(a, b, flip, scratch=None):
     return out[0], out[1]
 
 
-def null_moved(ref, ens, table: pd.DataFrame, flips: int, seed: int = 0, stems=FIGURES,
+def null_plan(spec, n_seeds: int) -> tuple[str, int]:
+    """How chance's count is drawn on ``n_seeds`` common seeds: ("exact", 2^(n - 1)) for
+    ``spec`` "exact" (every distinct exchange, :func:`exact_flips`; ValueError above EXACT_MAX of
+    them), ("random", K) for an integer ``spec`` K >= 1, and for "auto" the exact null when
+    2^(n - 1) <= EXACT_LIMIT, else ("random", RANDOM_FLIPS). ValueError for anything else."""
+    distinct = 2 ** (n_seeds - 1) if n_seeds >= 1 else 0
+    if spec == "auto":
+        return ("exact", distinct) if distinct <= EXACT_LIMIT else ("random", RANDOM_FLIPS)
+    if spec == "exact":
+        if distinct > EXACT_MAX:
+            raise ValueError(f"the exact null on {n_seeds} seeds is {distinct} exchanges, more than "
+                             f"{EXACT_MAX}: give a number of random ones (e.g. {RANDOM_FLIPS})")
+        return "exact", distinct
+    if isinstance(spec, (int, np.integer)) and not isinstance(spec, bool):
+        if spec < 1:
+            raise ValueError(f"flips must be at least 1, got {spec}")
+        return "random", int(spec)
+    raise ValueError(f"the null is 'exact', 'auto' or a number of random flips, got {spec!r}")
+
+
+def exact_flips(n: int) -> list[np.ndarray]:
+    """Every distinct exchange of the runs of ``n`` seeds: the 2^(n - 1) that leave the first
+    seed's runs in place, in binary order of the others (the first exchanges nothing: the real
+    pair). Exchanging the complement of a set of seeds gives the same two mixed ensembles in the
+    other order (:func:`mixed`: the first of one is the second of the other, run for run and
+    record for record; the figures read no other part of an ensemble), so every shift changes
+    sign only and the same numbers move: the 2^n exchanges are these 2^(n - 1) twice over, and
+    their counts have the distribution of all 2^n."""
+    if n < 1:
+        raise ValueError(f"no exchange of {n} seeds")
+    rest = (np.arange(2 ** (n - 1))[:, None] >> np.arange(n - 1)) & 1
+    return [np.concatenate([[False], row.astype(bool)]) for row in rest]
+
+
+def random_flips(n: int, k: int, seed: int = 0) -> list[np.ndarray]:
+    """``k`` random exchanges of the runs of ``n`` seeds, each seed's exchanged with probability
+    1/2 (a numpy generator of ``seed``; the first k of more are the same k)."""
+    rng = np.random.default_rng(seed)
+    return [rng.integers(0, 2, n).astype(bool) for _ in range(k)]
+
+
+def canonical(flip) -> tuple[bool, ...]:
+    """The exchange, or its complement, that leaves the first seed in place: both count alike
+    (:func:`exact_flips`)."""
+    f = np.asarray(flip, bool)
+    return tuple(bool(v) for v in (~f if f[0] else f))
+
+
+def mc_error(p: float, flips: int) -> float:
+    """Monte-Carlo standard error of a p value estimated from ``flips`` random exchanges:
+    sqrt(p (1 - p) / flips) (0.0097 at p = 0.05 and 500 flips)."""
+    return math.sqrt(p * (1.0 - p) / flips)
+
+
+def decide(p: float, error: float) -> dict:
+    """The null's decision as data: ``decision`` "moved" when p < ALPHA, else "no difference
+    detected" (a failure to reject: the shifts the check could have seen are ``min_detectable``
+    beside each number, not a proof that there are none); ``decision_firm``: whether p lies more
+    than two Monte-Carlo errors from ALPHA (always, for the exact null)."""
+    return {"alpha": ALPHA, "decision": "moved" if p < ALPHA else "no difference detected",
+            "decision_firm": bool(abs(p - ALPHA) > 2.0 * error)}
+
+
+def moved_count(numbers_a: dict, numbers_b: dict, comb: dict) -> int:
+    """How many of the numbers ``comb`` ({figure.key: combined error}) with a finite error move
+    by more than SIGMA_LIMIT of it between the scalars ``numbers_a`` and ``numbers_b``
+    (:func:`_all_scalars` of each side's documents)."""
+    n = 0
+    for key, c in comb.items():
+        if key in numbers_a and key in numbers_b and math.isfinite(c):
+            sig = _in_sigma(numbers_b[key] - numbers_a[key], c)
+            n += bool(math.isfinite(sig) and abs(sig) > SIGMA_LIMIT)
+    return n
+
+
+# the figures' power-law fits met before, while the null evaluates (:func:`fit_memo`)
+_FIT_CACHE: dict | None = None
+FIT_CACHE_MAX = 100_000   # entries (~1 kB each); past it, nothing more is kept
+
+
+def _memo_fit(fit):
+    def memo(sizes, *args, **kwargs):
+        a = np.ascontiguousarray(np.asarray(sizes))
+        key = (hashlib.blake2b(a.tobytes(), digest_size=20).digest(), a.dtype.str, a.shape,
+               args, tuple(sorted(kwargs.items())))
+        hit = _FIT_CACHE.get(key)
+        if hit is None:
+            hit = fit(sizes, *args, **kwargs)
+            if len(_FIT_CACHE) < FIT_CACHE_MAX:
+                _FIT_CACHE[key] = hit
+        return dict(hit)
+    memo.real = fit
+    return memo
+
+
+def _install_fit_memo() -> bool:
+    """Fig. 5's fits (``fig5._fit``) memoized in this process; False if they already were."""
+    global _FIT_CACHE
+    from . import fig5
+    if _FIT_CACHE is not None:
+        return False
+    _FIT_CACHE = {}
+    fig5._fit = _memo_fit(fig5._fit)
+    return True
+
+
+def _remove_fit_memo() -> None:
+    global _FIT_CACHE
+    from . import fig5
+    fig5._fit = getattr(fig5._fit, "real", fig5._fit)
+    _FIT_CACHE = None
+
+
+@contextlib.contextmanager
+def fit_memo():
+    """Inside the block, Fig. 5's fits of a set of cluster sizes (``fig5._fit``, a function of
+    the sizes, in their order, and the fit's settings alone) are computed once per set and
+    returned again when the same set comes back, as it does across exchanges: the interval of the
+    pooled delta refits 199 resamples of whole runs, and a resample's sizes are the same whenever
+    two exchanges agree on the ~5 of 8 seeds it draws: over all 128 exchanges of 8 seeds ~80% of
+    these refits come back (at 16 seeds, ~10 of 16 drawn, 500 random exchanges: ~13%). The
+    documents are the same, bit for bit (tests/figures/test_same_piles.py). Nested blocks share
+    the outer one's memo."""
+    mine = _install_fit_memo()
+    try:
+        yield
+    finally:
+        if mine:
+            _remove_fit_memo()
+
+
+def _memo_documents(ens, stems=FIGURES, notebooks_dir="notebooks") -> dict:
+    """:func:`figure_documents` with Fig. 5's fits memoized for the rest of the process's life:
+    what the null's worker processes evaluate (each pool is the null's own)."""
+    _install_fit_memo()
+    return figure_documents(ens, stems, notebooks_dir)
+
+
+def null_moved(ref, ens, table: pd.DataFrame, flips, seed: int = 0, stems=FIGURES,
                notebooks_dir="notebooks", scratch=None, progress=None, workers: int = 1) -> dict:
     """The number of figure numbers that move by more than SIGMA_LIMIT when nothing but chance
-    separates the two ensembles: ``flips`` random exchanges of the two runs of each seed (each
-    seed's pair exchanged with probability 1/2, a numpy generator of ``seed``), each scored as
+    separates the two ensembles: exchanges of the two runs of some seeds, each scored as
     :func:`ensemble_against_ensemble` scores the real pair, its shift over the real pair's
-    combined standard error (``table``'s se_ref, se), so that each flip costs two evaluations of
-    the figures instead of 2 (N + 1). Under the hypothesis that the two settings give the same
-    piles' statistics the runs of a seed are exchangeable, and the observed count is a draw of
-    this distribution. Returns the counts, their median and 95th percentile, and the one-sided p
-    value of the observed count, (1 + #(count >= observed)) / (1 + flips). ``workers``: processes
-    evaluating the figures (:func:`documents_each`; the same counts). Each exchange's run-file
-    links (:func:`mixed`) go to its own folder of ``scratch``."""
-    if flips < 1:
-        raise ValueError(f"flips must be at least 1, got {flips}")
+    combined standard error (``table``'s se_ref, se), so that each exchange costs two
+    evaluations of the figures instead of 2 (N + 1). Under the hypothesis that the two settings
+    give the same piles' statistics the runs of a seed are exchangeable, and the observed count is
+    a draw of this distribution.
+
+    ``flips`` (:func:`null_plan`): "exact", every distinct exchange (2^(n - 1) of them: an
+    exchange and its complement count alike, :func:`exact_flips`), p = #(count >= observed) /
+    2^(n - 1), the real pair among them, with no Monte-Carlo error; an integer K, K random
+    exchanges (:func:`random_flips` of ``seed``), p = (1 + #(count >= observed)) / (1 + K), with
+    Monte-Carlo error sqrt(p (1 - p) / K) (:func:`mc_error`; below 0.01 near p = 0.05 from K =
+    500 on); "auto", exact up to EXACT_LIMIT exchanges, else RANDOM_FLIPS random ones. Each
+    distinct exchange is evaluated once (random draws that repeat one, or its complement, reuse
+    its count), Fig. 5's fits are memoized across exchanges (:func:`fit_memo`), and ``workers``
+    processes evaluate the figures (:func:`documents_each`): the same counts in every case. Each
+    exchange's run-file links (:func:`mixed`) go to its own folder of ``scratch``.
+
+    Returns method ("exact" or "random"), flips (the exchanges counted), evaluated (the distinct
+    ones evaluated), seed (None for exact), counts (one per exchange), their median and 95th
+    percentile, observed, p_value, mc_error, and the decision as data (:func:`decide`: alpha,
+    decision, decision_firm)."""
     seeds = common_seeds(ref, ens)
+    method, k = null_plan(flips, len(seeds))
     if len(seeds) < JACKKNIFE_SEEDS:
         raise ValueError(f"the ensembles share {len(seeds)} seeds: what chance moves needs "
                          f"{JACKKNIFE_SEEDS} or more (an error to move by)")
     a, b = subset(ref, seeds), subset(ens, seeds)
     comb = {f"{r['figure']}.{r['key']}": math.hypot(r["se_ref"], r["se"])
             for r in table.to_dict("records")}
-    rng = np.random.default_rng(seed)
-    pairs = [rng.integers(0, 2, len(seeds)).astype(bool) for _ in range(flips)]
+    pairs = exact_flips(len(seeds)) if method == "exact" else random_flips(len(seeds), k, seed)
+    keys = [canonical(f) for f in pairs]
+    distinct = list(dict.fromkeys(keys))
 
     def jobs():
-        for i, flip in enumerate(pairs):
+        for i, key in enumerate(distinct):
+            flip = np.array(key, bool)
             x, y = mixed(a, b, flip, None if scratch is None else Path(scratch) / f"flip{i}")
-            yield (f"null: flip {i + 1} of {flips} ({int(flip.sum())} of {len(seeds)} seeds "
-                   "exchanged)"), x
+            yield (f"null: flip {i + 1} of {len(distinct)} ({int(flip.sum())} of {len(seeds)} "
+                   "seeds exchanged)"), x
             yield None, y
 
-    docs = documents_each(jobs(), stems, notebooks_dir, workers, progress)
-    counts = []
-    for _ in pairs:
-        fa, fb = _all_scalars(next(docs)), _all_scalars(next(docs))
-        n = 0
-        for key, c in comb.items():
-            if key in fa and key in fb and math.isfinite(c):
-                sig = _in_sigma(fb[key] - fa[key], c)
-                n += bool(math.isfinite(sig) and abs(sig) > SIGMA_LIMIT)
-        counts.append(n)
-    docs.close()
+    if workers == 1:
+        with fit_memo():
+            docs = documents_each(jobs(), stems, notebooks_dir, 1, progress)
+            count = {key: moved_count(_all_scalars(next(docs)), _all_scalars(next(docs)), comb)
+                     for key in distinct}
+            docs.close()
+    else:
+        docs = documents_each(jobs(), stems, notebooks_dir, workers, progress,
+                              evaluate=_memo_documents)
+        count = {key: moved_count(_all_scalars(next(docs)), _all_scalars(next(docs)), comb)
+                 for key in distinct}
+        docs.close()
+    counts = [count[key] for key in keys]
     observed = int(table["moved"].sum())
     c = np.array(counts)
-    return {"flips": flips, "seed": seed, "counts": counts, "median": float(np.median(c)),
-            "p95": float(np.percentile(c, 95)), "observed": observed,
-            "p_value": float((1 + (c >= observed).sum()) / (1 + flips))}
+    if method == "exact":
+        p, err = float((c >= observed).sum() / c.size), 0.0
+    else:
+        p = float((1 + (c >= observed).sum()) / (1 + c.size))
+        err = mc_error(p, c.size)
+    return {"method": method, "flips": len(pairs), "evaluated": len(distinct),
+            "seed": seed if method == "random" else None, "counts": counts,
+            "median": float(np.median(c)), "p95": float(np.percentile(c, 95)),
+            "observed": observed, "p_value": p, "mc_error": err, **decide(p, err)}
 
 
 # ----------------------------------------------------------------------------------------------
@@ -494,13 +698,13 @@ def null_moved(ref, ens, table: pd.DataFrame, flips: int, seed: int = 0, stems=F
 
 
 def study(ref, ens, ref_label: str, label: str, notebooks_dir="notebooks", progress=None,
-          null_flips: int = 0, scratch=None, workers: int = 1) -> dict:
+          null_flips=0, scratch=None, workers: int = 1) -> dict:
     """The whole comparison (module docstring) as one JSON-able document: the labels, the
     common seeds, ``pile_against_pile``, the ensemble table as rows, the count of numbers moved by
-    more than SIGMA_LIMIT, with ``null_flips`` > 0 the counts chance gives (:func:`null_moved`,
-    under ``null``), and ``documents``: {label: {stem: figure document}} of both on the common
-    seeds (for the report's judges). ``workers``: processes evaluating the figures (the same
-    document)."""
+    more than SIGMA_LIMIT, with ``null_flips`` ("exact", "auto" or a number K > 0; 0 or None:
+    none) the counts chance gives, p and its decision (:func:`null_moved`, under ``null``), and
+    ``documents``: {label: {stem: figure document}} of both on the common seeds (for the report's
+    judges). ``workers``: processes evaluating the figures (the same document)."""
     table, na, nb = ensemble_against_ensemble(ref, ens, FIGURES, notebooks_dir, progress, workers)
     null = (null_moved(ref, ens, table, null_flips, notebooks_dir=notebooks_dir, scratch=scratch,
                        progress=progress, workers=workers) if null_flips else None)
