@@ -9,6 +9,7 @@ from pathlib import Path
 
 import pytest
 
+from tiltpile.report import history_rate as hr
 from tiltpile.report import main as rm
 from tiltpile.report.claims import CLAIMS
 from tiltpile.report.document import judge_all, load_figures
@@ -125,20 +126,20 @@ def test_the_same_piles_decision_says_what_the_null_can_say():
             null["method"] = method
         return {"null": null}
 
-    assert rm.decide(study(0.049, 40), 0) == "undecided"              # +- 0.034
-    assert rm.null_of(study(0.049, 40))["mc_error"] == pytest.approx((0.049 * 0.951 / 40) ** 0.5)
-    assert rm.decide(study(0.01, 500), 0) == "moved"                   # 0.01 +- 0.0045
-    assert rm.decide(study(0.24, 500), 0) == "no difference detected"
-    assert rm.decide(study(0.049, 128, "exact"), 0) == "moved"         # exact: no error
-    assert rm.null_of(study(0.049, 128, "exact"))["mc_error"] == 0.0
-    assert rm.decide(study(0.5, 500), 1) == "moved"
-    assert rm.decide({"null": None}, 0) == "open"
+    assert hr.decide(study(0.049, 40), 0) == "undecided"              # +- 0.034
+    assert hr.null_of(study(0.049, 40))["mc_error"] == pytest.approx((0.049 * 0.951 / 40) ** 0.5)
+    assert hr.decide(study(0.01, 500), 0) == "moved"                   # 0.01 +- 0.0045
+    assert hr.decide(study(0.24, 500), 0) == "no difference detected"
+    assert hr.decide(study(0.049, 128, "exact"), 0) == "moved"         # exact: no error
+    assert hr.null_of(study(0.049, 128, "exact"))["mc_error"] == 0.0
+    assert hr.decide(study(0.5, 500), 1) == "moved"
+    assert hr.decide({"null": None}, 0) == "open"
     # the smallest detectable mean shift: 2.80 sd / sqrt(n) of the per-seed differences
     d = [0.5, -0.5, 1.0, -1.0]
-    got = rm.detectable({"pile_against_pile": {"per_seed": {
+    got = hr.detectable({"pile_against_pile": {"per_seed": {
         "theta_first_slide": {"difference": d}, "theta_first_onset": {"difference": [None, 1.0]}}}})
     import statistics
-    assert got["theta_first_slide"] == pytest.approx(rm.Z_DETECT * statistics.stdev(d) / 2)
+    assert got["theta_first_slide"] == pytest.approx(hr.Z_DETECT * statistics.stdev(d) / 2)
     assert got["theta_first_onset"] != got["theta_first_onset"]          # one seed: NaN
 
 
@@ -146,4 +147,4 @@ def test_the_committed_paper_5x_check_is_exact():
     ctx = rm.context(ROOT / "figures")
     x = next(r for r in ctx["rates"] if r["faster"] == "paper-5x")
     assert x["null"]["method"] == "exact" and x["null"]["flips"] == 2 ** (x["seeds"] - 1)
-    assert x["decision"] == ("no difference detected" if x["null"]["p_value"] >= rm.ALPHA else "moved")
+    assert x["decision"] == ("no difference detected" if x["null"]["p_value"] >= hr.ALPHA else "moved")

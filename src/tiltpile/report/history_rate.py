@@ -11,12 +11,17 @@ number moves by more than 2 of its standard errors and the verdicts of the paper
 same. With ~150 numbers and 2 standard errors, chance alone moves several of them (a t
 distribution of N - 1 degrees of freedom puts 6-10% of its mass beyond 2), so that rule fails
 for any two ensembles of different runs. The rule applied here keeps its intent: the count of
-moved numbers must be within what chance moves, measured by exchanging the two runs of each
-seed at random (:func:`tiltpile.figures.same_piles.null_moved`; at most its 95th percentile),
-and every verdict must be the same. The literal rule's count is reported beside it.
+moved numbers is set against what chance moves, measured by exchanging the two runs of each
+seed (:func:`tiltpile.figures.same_piles.null_moved`: every exchange where affordable, else
+random draws with p's Monte-Carlo error), and every verdict must be the same (:func:`decide`:
+"moved", "no difference detected" with the smallest shift the seeds could have detected,
+:func:`detectable`, or "undecided" while p lies within FIRM Monte-Carlo errors of ALPHA). The
+literal rule's count is reported beside it.
 """
 
 from __future__ import annotations
+
+import numpy as np
 
 import math
 from pathlib import Path
@@ -66,12 +71,57 @@ def differing(judged: dict[str, list], claims: list[Claim], pair=PAIR) -> list[s
     return out
 
 
-def decision(study: dict, n_differ: int) -> str:
-    """"passes", "fails", or "open" (no null measured); the rule: module docstring."""
+#: the significance level of the same-piles decision, and how far (in Monte-Carlo errors) p must
+#: lie from it for a decision by random exchanges to be firm
+ALPHA, FIRM = 0.05, 2.0
+#: (z_0.975 + z_0.8): the smallest mean difference a paired test detects with power 0.8 on n
+#: seeds is Z_DETECT sd / sqrt(n) (as tiltpile.figures.same_piles.min_detectable)
+Z_DETECT = 1.959963984540054 + 0.8416212335729143
+
+
+def null_of(study: dict) -> dict | None:
+    """The same-piles study's null, with what every study has: ``method`` ("exact": every
+    exchange of each seed's two runs counted; "random": ``flips`` drawn), p and its Monte-Carlo
+    error (0 when exact; sqrt(p (1 - p) / flips) for random draws of a study written before the
+    error was), and whether the decision at ALPHA is firm (p more than FIRM errors from it)."""
     null = study.get("null")
     if not null:
+        return None
+    p, k = float(null["p_value"]), int(null["flips"])
+    method = null.get("method", "random")
+    err = null.get("mc_error")
+    if err is None:
+        err = 0.0 if method == "exact" else math.sqrt(p * (1 - p) / k)
+    return {**null, "method": method, "mc_error": float(err),
+            "firm": abs(p - ALPHA) > FIRM * float(err)}
+
+
+def decide(study: dict, n_differ: int) -> str:
+    """"moved" (the setting moves the figures: more numbers moved than chance moves, p < ALPHA,
+    firmly, or a claim's verdict flips), "no difference detected" (p >= ALPHA, firmly, and every
+    verdict the same: not a proof of equality; :func:`detectable` says how large a shift could
+    have hidden), "undecided" (p within FIRM Monte-Carlo errors of ALPHA: more exchanges decide)
+    or "open" (no null measured)."""
+    if n_differ:
+        return "moved"
+    null = null_of(study)
+    if null is None:
         return "open"
-    return "passes" if study["n_moved"] <= null["p95"] and n_differ == 0 else "fails"
+    if not null["firm"]:
+        return "undecided"
+    return "moved" if null["p_value"] < ALPHA else "no difference detected"
+
+
+def detectable(study: dict) -> dict:
+    """{number: the smallest mean difference of it the seeds could have detected} for the first
+    onset and the first large slide, from the per-seed differences (80% power at ALPHA)."""
+    out = {}
+    pp = study.get("pile_against_pile") or {}
+    for key in ("theta_first_onset", "theta_first_slide"):
+        d = np.asarray([math.nan if x is None else float(x) for x in ((pp.get("per_seed") or {}).get(key) or {}).get("difference", [])], float)
+        d = d[np.isfinite(d)]
+        out[key] = float(Z_DETECT * d.std(ddof=1) / math.sqrt(d.size)) if d.size >= 2 else math.nan
+    return out
 
 
 def _cost(docs: dict[str, dict], pair=PAIR) -> str:
@@ -108,10 +158,14 @@ def render(study: dict | None, judged: dict[str, list], claims: list[Claim],
     moved = (f"{study['n_moved']} of {study['n_with_error']} figure numbers with a jackknife "
              f"error move by more than {study['sigma_limit']:g} combined standard errors")
     if null:
+        nl = null_of(study)
+        how = (f"all {nl['flips']} distinct exchanges of each seed's two runs (p = "
+               f"{nl['p_value']:.3f}" if nl["method"] == "exact" else
+               f"{nl['flips']} random exchanges of each seed's two runs (p = {nl['p_value']:.3f} "
+               f"+- {nl['mc_error']:.3f}")
         lines += ["", f"Every figure number ensemble against ensemble: {moved}; chance alone "
                   f"moves a median of {null['median']:g} (95th percentile {null['p95']:g}) in "
-                  f"{null['flips']} random exchanges of each seed's two runs (p = "
-                  f"{null['p_value']:.2f} for {study['n_moved']} or more)."]
+                  f"{how} for {study['n_moved']} or more)."]
     else:
         lines += ["", f"Every figure number ensemble against ensemble: {moved}; what chance "
                   "moves is not measured (`tiltpile same-piles --null K`)."]
@@ -128,18 +182,24 @@ def render(study: dict | None, judged: dict[str, list], claims: list[Claim],
         lines += ["", "The paper's claims on both sides' figures: "
                   + ("the same verdict for every claim." if not diff else
                      "different verdicts for " + "; ".join(diff) + ".")]
-        word = decision(study, len(diff))
-        rule = ("the count of moved numbers within chance's 95th percentile and every verdict "
-                "the same; the literal rule, no number moved, fails by chance alone with "
+        word = decide(study, len(diff))
+        det = detectable(study)
+        rule = (f"moved when p < {ALPHA:g} or a verdict changes, no difference detected when p "
+                f">= {ALPHA:g}, undecided when p lies within {FIRM:g} Monte-Carlo errors of "
+                f"{ALPHA:g}; the literal rule, no number moved, fails by chance alone with "
                 f"{study['n_with_error']} numbers")
         if n < want:
-            lines += ["", f"**Decision: not yet** ({n} of {want} seeds). So far {fast} "
-                      f"{'would pass' if word == 'passes' else 'would fail' if word == 'fails' else 'is undecided'}"
-                      f" by the rule: {rule}."]
+            lines += ["", f"**Decision: not yet** ({n} of {want} seeds). So far {fast}: {word}, "
+                      f"by the rule: {rule}."]
         else:
-            verdict = {"passes": f"{fast} passes: it stands in for {ref} in new paper-scale "
-                                 "studies", "fails": f"{fast} fails: its history's rate moves "
-                                 "the figures", "open": "open: measure what chance moves"}[word]
+            verdict = {"moved": f"{fast}'s history's rate moves the figures",
+                       "no difference detected": (
+                           f"no difference detected between {fast} and {ref}: a mean shift of "
+                           f"the slide below {det['theta_first_slide']:.2f} deg or of the first "
+                           f"onset below {det['theta_first_onset']:.2f} deg could have hidden "
+                           f"(80% power on {n} seeds)"),
+                       "undecided": "undecided: more exchanges decide",
+                       "open": "open: measure what chance moves"}[word]
             lines += ["", f"**Decision: {verdict}** (the rule: {rule})."]
     cost = _cost(fig2_docs or {}, pair)
     if cost:

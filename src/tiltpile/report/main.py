@@ -171,64 +171,11 @@ def _rates(root, claims) -> list[dict]:
         cost = {s: (_doc(f).get("cost") or {}) for s, f in sides.items()}
         out.append({"ref": pair[0], "faster": pair[1], "speedup": _rate.speedup(pair),
                     "seeds": len(study.get("seeds") or []), "n_moved": study.get("n_moved"),
-                    "n_with_error": study.get("n_with_error"), "null": null_of(study),
-                    "differ": differ, "decision": decide(study, len(differ)),
-                    "detectable": detectable(study),
+                    "n_with_error": study.get("n_with_error"), "null": _rate.null_of(study),
+                    "differ": differ, "decision": _rate.decide(study, len(differ)),
+                    "detectable": _rate.detectable(study),
                     "sweeps": {s: (c.get("sweeps_per_run") or math.nan) for s, c in cost.items()},
                     "rows": _pile_rows(study)})
-    return out
-
-
-#: the significance level of the same-piles decision, and how far (in Monte-Carlo errors) p must
-#: lie from it for a decision by random exchanges to be firm
-ALPHA, FIRM = 0.05, 2.0
-#: (z_0.975 + z_0.8): the smallest mean difference a paired test detects with power 0.8 on n
-#: seeds is Z_DETECT sd / sqrt(n) (as tiltpile.figures.same_piles.min_detectable)
-Z_DETECT = 1.959963984540054 + 0.8416212335729143
-
-
-def null_of(study: dict) -> dict | None:
-    """The same-piles study's null, with what every study has: ``method`` ("exact": every
-    exchange of each seed's two runs counted; "random": ``flips`` drawn), p and its Monte-Carlo
-    error (0 when exact; sqrt(p (1 - p) / flips) for random draws of a study written before the
-    error was), and whether the decision at ALPHA is firm (p more than FIRM errors from it)."""
-    null = study.get("null")
-    if not null:
-        return None
-    p, k = float(null["p_value"]), int(null["flips"])
-    method = null.get("method", "random")
-    err = null.get("mc_error")
-    if err is None:
-        err = 0.0 if method == "exact" else math.sqrt(p * (1 - p) / k)
-    return {**null, "method": method, "mc_error": float(err),
-            "firm": abs(p - ALPHA) > FIRM * float(err)}
-
-
-def decide(study: dict, n_differ: int) -> str:
-    """"moved" (the setting moves the figures: more numbers moved than chance moves, p < ALPHA,
-    firmly, or a claim's verdict flips), "no difference detected" (p >= ALPHA, firmly, and every
-    verdict the same: not a proof of equality; :func:`detectable` says how large a shift could
-    have hidden), "undecided" (p within FIRM Monte-Carlo errors of ALPHA: more exchanges decide)
-    or "open" (no null measured)."""
-    if n_differ:
-        return "moved"
-    null = null_of(study)
-    if null is None:
-        return "open"
-    if not null["firm"]:
-        return "undecided"
-    return "moved" if null["p_value"] < ALPHA else "no difference detected"
-
-
-def detectable(study: dict) -> dict:
-    """{number: the smallest mean difference of it the seeds could have detected} for the first
-    onset and the first large slide, from the per-seed differences (80% power at ALPHA)."""
-    out = {}
-    pp = study.get("pile_against_pile") or {}
-    for key in ("theta_first_onset", "theta_first_slide"):
-        d = np.asarray([_num(x) for x in ((pp.get("per_seed") or {}).get(key) or {}).get("difference", [])], float)
-        d = d[np.isfinite(d)]
-        out[key] = float(Z_DETECT * d.std(ddof=1) / math.sqrt(d.size)) if d.size >= 2 else math.nan
     return out
 
 
