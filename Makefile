@@ -162,7 +162,7 @@ FIG_COMMON := $(wildcard src/tiltpile/__init__.py src/tiltpile/figures/__init__.
               $(filter-out %/structure.py %/zcount.py,$(ANALYSIS))
 FIG_USES_fig1 := src/tiltpile/figures/snapshot.py
 FIG_USES_fig2 := src/tiltpile/paper_values.py
-FIG_USES_fig3 := src/tiltpile/figures/snapshot.py
+FIG_USES_fig3 := src/tiltpile/figures/snapshot.py src/tiltpile/paper_values.py
 FIG_USES_fig5 := src/tiltpile/paper_values.py
 FIG_USES_fig7 := src/tiltpile/figures/snapshot.py
 FIG_USES_preparation := src/tiltpile/figures/fig2.py src/tiltpile/analysis/structure.py \

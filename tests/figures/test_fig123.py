@@ -441,3 +441,94 @@ def test_the_avalanche_angle_is_the_large_slide_of_repose():
 
     assert fig2.AVALANCHE_KE == KE_SLIDE == cfgmod.load("paper").protocol.end_ke
 
+
+
+# ---------------------------------------------------------------------------------------------
+# what the figures draw (issue 74 item 5): on the figure objects, not on pixels
+
+
+def _axis(fig, ylabel=None, xlabel=None):
+    """The one axes of ``fig`` whose y (x) label contains ``ylabel`` (``xlabel``)."""
+    found = [a for a in fig.axes if (ylabel is None or ylabel in a.get_ylabel())
+             and (xlabel is None or xlabel in a.get_xlabel())]
+    assert len(found) == 1, [(a.get_xlabel(), a.get_ylabel()) for a in fig.axes]
+    return found[0]
+
+
+def test_fig2_panel_a_draws_the_break_and_says_when_its_threshold_is_not_stable():
+    """Below the density, its ratio to the fitted law with the rule's band (a factor ke_factor
+    either side of 1) and the threshold: the break the threshold stands for. In _fig2_frames the
+    threshold hangs on run 3 (not firm): the panel says so, with the criteria the analysis uses
+    instead; a firm threshold gets no note."""
+    fr = _fig2_frames()
+    numbers, d = fig2.compute(_ensemble(fr), slide_sustain_deg=0.1, ke_factor=2.0)
+    st = numbers["stability"]["ke_threshold"]
+    assert not st["firm"]
+    fig = fig2.plot(d, numbers)
+    try:
+        ratio = _axis(fig, ylabel="/ law")
+        dep, ke = d["ke_fit"], d["ke_density"]
+        nz = ke["count"].to_numpy() > 0
+        law = 10 ** (dep["intercept"] + dep["slope"] * np.log10(ke["center"].to_numpy()[nz]))
+        pts = next(ln for ln in ratio.get_lines() if ln.get_marker() == "o")
+        want = np.clip(ke["density"].to_numpy()[nz] / law, 0.1, 5.0)
+        assert np.asarray(pts.get_ydata(), float) == pytest.approx(want)
+        spans = [(round(p.get_y(), 12), round(p.get_y() + p.get_height(), 12))
+                 for p in ratio.patches]
+        assert (0.5, 2.0) in spans                            # the rule's band, 1/2 to 2
+        vx = [float(np.asarray(ln.get_xdata())[0]) for ln in ratio.get_lines()
+              if ln.get_linestyle() == "-" and np.ptp(np.asarray(ln.get_xdata(), float)) == 0]
+        assert any(np.isclose(x, numbers["ke_threshold"]) for x in vx)
+        other = [v for v in st["values"] if v != numbers["ke_threshold"]]
+        dashed = [float(np.asarray(ln.get_xdata())[0]) for ln in ratio.get_lines()
+                  if ln.get_linestyle() == "--" and np.ptp(np.asarray(ln.get_xdata(), float)) == 0]
+        assert sorted(dashed) == pytest.approx(sorted(other))
+        panel = _axis(fig, ylabel="$P($")
+        text = " ".join(t.get_text() for t in panel.texts)
+        assert "threshold not stable" in text
+        assert f"{other[0]:.1e}".replace("e-0", "e-") + " (1 of 3 runs)" in text
+        assert "2% of contacts" in text and "avalanche angle" in text and "> 1e-3" in text
+    finally:
+        plt.close(fig)
+    assert fig2.ke_stability_note(d, numbers) in text
+    firm = {**numbers, "stability": {"ke_threshold": {**st, "firm": True}}}
+    assert fig2.ke_stability_note({**d, "ke_stability": firm["stability"]["ke_threshold"]},
+                                  firm) == ""
+    fig = fig2.plot({**d, "ke_stability": firm["stability"]["ke_threshold"]}, firm)
+    try:
+        assert "not stable" not in " ".join(t.get_text() for a in fig.axes for t in a.texts)
+    finally:
+        plt.close(fig)
+
+
+def test_fig3_draws_the_orientation_with_the_papers_value_and_our_median():
+    from tiltpile.paper_values import ORIENTATION_DEG
+
+    ens = _fig3_ensemble()
+    numbers, d = fig3.compute(ens, snapshot=False)
+    # the angles are plot data only: the JSON's orientation numbers are the five they were
+    assert sorted(k for k in numbers if "orientation" in k) == sorted(
+        ["orientation_mean_deg", "orientation_median_deg", "n_clusters_orientation",
+         "orientation_mean_avalanche_deg", "n_clusters_orientation_avalanche"])
+    assert sorted(d["orientation_quiet"]) == [50.0, 70.0]
+    assert list(d["orientation_avalanche"]) == [20.0]
+    fig = fig3.plot(d, numbers)
+    try:
+        ax = _axis(fig, xlabel="to gravity")
+        assert ax.get_xlim() == (0.0, 90.0)
+        lines = {ln.get_gid(): float(np.asarray(ln.get_xdata())[0]) for ln in ax.get_lines()
+                 if ln.get_gid()}
+        assert lines["orientation_paper"] == ORIENTATION_DEG.value == 60.0
+        assert lines["orientation_median"] == pytest.approx(numbers["orientation_median_deg"])
+        assert lines["orientation_mean"] == pytest.approx(numbers["orientation_mean_deg"])
+        labels = ax.get_legend_handles_labels()[1]
+        assert any("paper" in t and "60" in t for t in labels)
+        assert any(t.startswith("median 60") for t in labels)
+        # the quiet distribution, a density over 0-90 deg: its filled stairs integrate to 1
+        from matplotlib.patches import StepPatch
+        steps = [p for p in ax.patches if isinstance(p, StepPatch) and p.get_fill()]
+        assert len(steps) == 1
+        vals, edges = steps[0].get_data()[:2]
+        assert float(np.sum(vals * np.diff(edges))) == pytest.approx(1.0)
+    finally:
+        plt.close(fig)

@@ -248,3 +248,73 @@ def test_dz_distribution_of_several_sizes_spreads_over_cells():
     # bin [-1/8, 1/8): the size-2 cluster and the size-3 cell [-1/12, 1/12] whole, and a quarter
     # of the cell [1/12, 1/4] of the cluster at 1/6
     assert float(d.loc[np.isclose(d["center"], 0.0), "count"].iloc[0]) == pytest.approx(2.25)
+
+
+# ---------------------------------------------------------------------------------------------
+# what the figures draw (issue 74 item 5): on the figure objects, not on pixels
+
+
+def test_fig5_legend_gives_the_interval_the_report_gives():
+    import json
+
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+
+    from tiltpile.report.judging import show_ci
+
+    # the committed paper-scale numbers: the legend's delta is the report's "x [lo, hi]"
+    doc = json.loads((Path(__file__).resolve().parents[2] / "figures" / "paper"
+                      / "fig5_cluster_sizes.json").read_text())
+    n = doc["numbers"]
+    x, interval = show_ci(n, "delta_pooled", ".2f").split(" ", 1)
+    assert fig5.delta_label(n) == rf" (fit: $\delta = {x}$ {interval})"
+    assert r"\pm" not in fig5.delta_label(n)
+    # drawn: the legend of a computed figure, with the interval set as a bootstrap gives it
+    ens, _ = _fig5_ensemble()
+    numbers, d = fig5.compute(ens, windows=(-14.4, -4.6, -0.75, -0.25), inset_lo=-5.0)
+    assert np.isnan(numbers["delta_pooled_ci_low"])          # one run: no interval over runs
+    for ci, want in (((np.nan, np.nan), rf"\pm {numbers['delta_pooled_err']:.2f}"),
+                     ((2.35, 2.61), "[2.35, 2.61]")):
+        shown = dict(numbers, delta_pooled_ci_low=ci[0], delta_pooled_ci_high=ci[1])
+        fig = fig5.plot(d, shown)
+        try:
+            texts = [t.get_text() for t in fig.axes[0].get_legend().get_texts()]
+            guide = [t for t in texts if t.startswith("slope")]
+            assert len(guide) == 1 and want in guide[0]
+            assert f"{numbers['delta_pooled']:.2f}" in guide[0]
+        finally:
+            plt.close(fig)
+
+
+def test_fig6b_error_bars_are_drawn_above_the_markers():
+    import matplotlib
+    matplotlib.use("Agg")
+    import matplotlib.pyplot as plt
+    from matplotlib.container import ErrorbarContainer
+
+    numbers, d = fig6.compute(_fig6_ensemble(), min_samples=1)
+    fig = fig6.plot(d, numbers)
+    try:
+        bx = fig.axes[1]
+        marker = next(ln for ln in bx.get_lines() if ln.get_marker() == "s")
+        assert marker.get_markerfacecolor() in ("white", (1.0, 1.0, 1.0, 1.0))   # open
+        bars = [c for c in bx.containers if isinstance(c, ErrorbarContainer)]
+        assert len(bars) == 2                                   # s.d. and s.e. of the mean
+        for c in bars:
+            _, caps, cols = c.lines
+            for artist in (*caps, *cols):
+                assert artist.get_zorder() > marker.get_zorder()
+        b = d["bins"]
+        sem = (b["dz_std"] / np.sqrt(b["n"])).to_numpy(float)
+        heights = {}
+        for c in bars:
+            segs = c.lines[2][0].get_segments()
+            heights[c.get_label()] = np.array([s[1, 1] - s[0, 1] for s in map(np.asarray, segs)
+                                               if s.shape == (2, 2)])
+        got = next(v for k, v in heights.items() if "s.e." in k)
+        assert got == pytest.approx(2 * sem[np.isfinite(sem)])
+        sd = next(v for k, v in heights.items() if "s.d." in k)
+        assert sd == pytest.approx(2 * b["dz_std"].dropna().to_numpy(float))
+    finally:
+        plt.close(fig)

@@ -3,7 +3,9 @@
 (a) Probability density of the kinetic energy per mobile grain over all frames and runs
     (log-binned, :func:`tiltpile.analysis.log_binned_density`), with the threshold where it leaves
     the power law of the quiet region (:func:`tiltpile.analysis.stats.power_law_departure`,
-    estimator below).
+    estimator below); beneath it the density divided by the fitted law, with the rule's band of a
+    factor ``ke_factor`` either side of 1, where the break the threshold stands for is seen (on a
+    density spanning twenty decades a factor of 2 is not).
 (b) Density (per decade) of the fraction of contacts lost between successive frames, for the
     frames that lose at least one contact, on bins that respect the integer counts
     (:func:`tiltpile.analysis.stats.lost_fraction_edges`, Freedman-Diaconis width on log10);
@@ -40,9 +42,12 @@ off the line by more than ``factor`` (empty bins count as off).
 How firm the numbers picked from the pooled runs are (``stability``): the threshold, the ends of
 its fitted range and panel b's valley are recomputed with each run left out in turn. A bin-picked
 threshold takes a few distinct values; where one left-out run moves it (``firm`` false) panel a
-draws its other values too (dashed, with how many left-out runs give each), and the report's
-per-scale table flags it: on the cycled 4000-grain piles the departure rule sits on its factor of
-2 and the threshold is bistable (docs/figures.md).
+draws its other values too (dashed) and says in its top that the threshold is not stable, with how
+many left-out runs give each value and the criteria the analysis uses instead (the onsets: the
+lost-contact cutoff of panel b; the avalanche angle: the fixed ``avalanche_ke``;
+:func:`ke_stability_note`), and the report's per-scale table flags it: on the cycled
+4000-grain piles the departure rule sits on its factor of 2 and the threshold is bistable
+(docs/figures.md).
 """
 
 from __future__ import annotations
@@ -199,7 +204,8 @@ def compute(ens, sample_seed: int | None = None, ke_column: str = "ke_trans",
                **_robustness(f, cutoff, robustness_cutoffs, max_shift, p["merge_gap"]),
                "stability": stability, "sample_seed": seed}
     data = {"cutoff": cutoff, "ke_density": ke_dens, "ke_fit": dep, "ke_column": ke_column,
-            "ke_stability": stability["ke_threshold"],
+            "ke_stability": stability["ke_threshold"], "ke_factor": float(ke_factor),
+            "avalanche_ke": float(avalanche_ke),
             **lost_data, **_sample(f, ens.seeds, seed, sl, aa, ke_column, zn_bins)}       # (c), (d)
     return numbers, data
 
@@ -410,22 +416,42 @@ def _sample(f: pd.DataFrame, seeds, seed, sl: np.ndarray, aa: np.ndarray, ke_col
     return out
 
 
+# panel a's parts (inches): the density, the ratio to its law below it, and per line of the note
+# (when there is one) the room added above the density
+KE_PANEL_IN, KE_RATIO_IN, NOTE_LINE_IN, NOTE_PAD_IN = 1.3, 0.6, 0.096, 0.06
+
+
 def plot(data: dict, numbers: dict):
-    """Panels a-d (module docstring)."""
-    height, gkw = style.stacked_layout([1.45, 1.45], [0.5], top_in=0.05, bottom_in=0.38,
+    """Panels a-d (module docstring). Panel a is split: the density over its power law, and
+    below it the density divided by the law, where the departure the threshold stands for is
+    seen (the rule's band of a factor ``ke_factor`` either side of 1). Where the threshold is
+    not stable (:func:`ke_stability_note`), the top of the panel says so, above the data."""
+    note = ke_stability_note(data, numbers)
+    room_in = NOTE_LINE_IN * (note.count("\n") + 1) + NOTE_PAD_IN if note else 0.0
+    top_in = KE_PANEL_IN + room_in + KE_RATIO_IN
+    height, gkw = style.stacked_layout([top_in, 1.45], [0.5], top_in=0.05, bottom_in=0.38,
                                        left=0.14, right=0.97)
     fig, axs = style.figure(2, 2, height=height, gridspec_kw=dict(gkw, wspace=0.42))
     (a, b), (c, dd) = axs
-    _plot_ke(a, data)
+    sub = a.get_subplotspec().subgridspec(2, 1, height_ratios=[KE_PANEL_IN + room_in, KE_RATIO_IN],
+                                          hspace=0.0)
+    a.remove()
+    a = fig.add_subplot(sub[0])
+    ar = fig.add_subplot(sub[1], sharex=a)
+    room = room_in / (KE_PANEL_IN + room_in)
+    _plot_ke(a, data, room=room)
+    _plot_ke_ratio(ar, data)
+    _note_ke_stability(a, note, room)
     _plot_lost(b, data)
     _plot_dz_gen(c, data)
     _plot_zn(dd, data)
     return fig
 
 
-def _plot_ke(a, data: dict) -> None:
+def _plot_ke(a, data: dict, room: float = 0.0) -> None:
     """Panel a: the kinetic-energy density, the fitted power law over its range, and the
-    threshold where the density leaves it."""
+    threshold where the density leaves it; the top share ``room`` of the panel is left to the
+    note (:func:`_note_ke_stability`)."""
     from matplotlib.ticker import NullFormatter
     ke, dep = data["ke_density"], data["ke_fit"]
     if len(ke):
@@ -438,33 +464,110 @@ def _plot_ke(a, data: dict) -> None:
             x = np.array([dep["fit_lo"] / 30, x_hi])
             a.loglog(x, 10 ** (dep["intercept"] + dep["slope"] * np.log10(x)), ls="--", lw=0.8,
                      color=style.COLORS["fit"], label=rf"$\propto E^{{{dep['slope']:.2f}}}$")
-            a.axvspan(dep["fit_lo"], dep["fit_hi"], color=style.COLORS["guide"], alpha=0.15, lw=0)
+            a.axvspan(dep["fit_lo"], dep["fit_hi"], ymax=1.0 - room, color=style.COLORS["guide"],
+                      alpha=0.15, lw=0)
         if np.isfinite(dep["threshold"]):
-            y = 10 ** (dep["intercept"] + dep["slope"] * np.log10(dep["threshold"]))
-            a.annotate("", xy=(dep["threshold"], y * 2), xytext=(dep["threshold"], y * 300),
-                       arrowprops=dict(arrowstyle="-|>", color=style.COLORS["avalanche"], lw=1.2))
-            a.plot([], [], color=style.COLORS["avalanche"], lw=1.2,
-                   label=f"threshold {dep['threshold']:.1e}".replace("e-0", "e-"))
-            # a threshold that one left-out run moves: its other values drawn too (dashed; how
-            # many left-out runs give each: the JSON's stability)
+            # the threshold as a line through both parts of the panel (the ratio below shows
+            # the departure it marks); its values with one run left out, where they differ,
+            # dashed (the JSON's stability; the note says how many left-out runs give each)
+            a.axvline(dep["threshold"], ymax=1.0 - room, color=style.COLORS["avalanche"], lw=1.0,
+                      label=f"threshold {dep['threshold']:.1e}".replace("e-0", "e-"),
+                      gid="ke_threshold")
             st = data.get("ke_stability") or {}
-            other = [v for v in st.get("values", []) if v != dep["threshold"] and np.isfinite(v)]
+            other = [v for v in st.get("values", [])
+                     if v is not None and v != dep["threshold"] and np.isfinite(v)]
             for v in other:
-                yv = 10 ** (dep["intercept"] + dep["slope"] * np.log10(v))
-                a.annotate("", xy=(v, yv * 2), xytext=(v, yv * 300),
-                           arrowprops=dict(arrowstyle="-|>", color=style.COLORS["avalanche"],
-                                           lw=0.8, ls="--"))
-            if other:
-                a.plot([], [], color=style.COLORS["avalanche"], lw=0.8, ls="--",
-                       label="one run out: " + ", ".join(f"{v:.0e}".replace("e-0", "e-")
-                                                         for v in other))
+                a.axvline(v, ymax=1.0 - room, color=style.COLORS["avalanche"], lw=0.7, ls="--",
+                          gid="ke_threshold_one_run_out")
         a.legend(loc="lower left", handlelength=1.5)
-    unit = {"ke_trans": r"$E_t$", "ke_rot": r"$E_r$"}.get(data["ke_column"], "E")
-    a.set_xlabel(unit + r" per grain ($\rho g d^3$)")
+    unit = _ke_unit(data)
     a.set_ylabel(r"$P($" + unit + r"$)$")
     style.panel_label(a, "a", x=0.88)
     a.xaxis.set_minor_formatter(NullFormatter())
     a.yaxis.set_minor_formatter(NullFormatter())
+    a.tick_params(labelbottom=False)
+
+
+def _ke_unit(data: dict) -> str:
+    return {"ke_trans": r"$E_t$", "ke_rot": r"$E_r$"}.get(data["ke_column"], "E")
+
+
+def _plot_ke_ratio(ar, data: dict) -> None:
+    """Panel a, below: the density divided by the fitted power law, with the rule's band (a
+    factor ``ke_factor`` either side of 1), the fitted range shaded and the threshold (solid;
+    its values with one run left out, where they differ, dashed). The break the threshold
+    stands for is where the points leave the band for good."""
+    from matplotlib.ticker import NullFormatter
+    ke, dep = data["ke_density"], data["ke_fit"]
+    factor = float(data.get("ke_factor", 2.0))
+    ar.axhline(1.0, color=style.COLORS["fit"], lw=0.6, ls="--")
+    ar.axhspan(1.0 / factor, factor, color=style.COLORS["marginal"], alpha=0.12, lw=0)
+    if len(ke) and np.isfinite(dep["slope"]):
+        nz = ke["count"].to_numpy() > 0
+        xc = ke["center"].to_numpy(float)[nz]
+        law = 10 ** (dep["intercept"] + dep["slope"] * np.log10(xc))
+        ratio = ke["density"].to_numpy(float)[nz] / law
+        lo, hi = 0.2 / factor, 2.5 * factor
+        ar.semilogx(xc, np.clip(ratio, lo, hi), ls="none", marker="o", ms=1.6,
+                    color=style.COLORS["quiet"], clip_on=True)
+        ar.axvspan(dep["fit_lo"], dep["fit_hi"], color=style.COLORS["guide"], alpha=0.15, lw=0)
+        if np.isfinite(dep["threshold"]):
+            ar.axvline(dep["threshold"], color=style.COLORS["avalanche"], lw=1.0)
+        st = data.get("ke_stability") or {}
+        for v in st.get("values", []):
+            if v is not None and np.isfinite(v) and v != dep["threshold"]:
+                ar.axvline(v, color=style.COLORS["avalanche"], lw=0.7, ls="--")
+        ar.set_yscale("log")
+        ar.set_ylim(lo, hi)
+        ar.set_yticks([1.0 / factor, 1.0, factor])
+        ar.set_yticklabels([f"{1.0 / factor:g}", "1", f"{factor:g}"])
+        ar.yaxis.set_minor_formatter(NullFormatter())
+        ar.tick_params(axis="y", which="minor", left=False, right=False)
+    ar.tick_params(axis="y", labelsize=5.5)
+    ar.set_ylabel(r"$P$ / law", fontsize=6, labelpad=1)
+    ar.set_xlabel(_ke_unit(data) + r" per grain ($\rho g d^3$)")
+    ar.xaxis.set_minor_formatter(NullFormatter())
+
+
+def ke_stability_note(data: dict, numbers: dict) -> str:
+    """The panel-a note where leaving one run out moves the threshold (fig2's ``stability``,
+    ``firm`` false): its other values, and the criteria the analysis uses instead (the onsets:
+    the lost-contact cutoff of panel b; the avalanche angle: the fixed ``avalanche_ke``). ''
+    where the threshold is firm or its stability was not measured."""
+    st = (numbers.get("stability") or {}).get("ke_threshold") or data.get("ke_stability") or {}
+    if not st or st.get("firm", True):
+        return ""
+    full = data["ke_fit"]["threshold"]
+    n = st.get("n")
+    other = [f"{v:.1e} ({k} of {n} runs)".replace("e-0", "e-")
+             for v, k in zip(st.get("values", []), st.get("counts", []))
+             if v is not None and v != full]
+    none = sum(1 for v in st.get("per_run_left_out", []) if v is None or not np.isfinite(v))
+    if none:
+        other.append(f"none ({none} of {n} runs)")
+    cutoff = data.get("cutoff", numbers.get("cutoff"))
+    ake = data.get("avalanche_ke", numbers.get("avalanche_ke"))
+    return ("threshold not stable:\none run left out gives\n" + ",\n".join(other) + ";\n"
+            f"the onsets use {100 * cutoff:g}% of contacts\n"
+            f"lost (b), the avalanche angle\n"
+            + f"{_ke_unit(data)} > {ake:.0e} per grain".replace("e-0", "e-"))
+
+
+def _note_ke_stability(a, txt: str, room: float) -> None:
+    """Panel a: the note ``txt`` (:func:`ke_stability_note`) in the top share ``room`` of the
+    panel, the data below it (the threshold lines and the fitted range stop under it). The
+    density's tick labels stay off the note and off the bottom edge, where the ratio's are."""
+    if a.get_yscale() == "log":          # else nothing was drawn: no density to keep below
+        y0, y1 = a.get_ylim()
+        span = np.log10(y1) - np.log10(y0)
+        ticks = [t for t in a.get_yticks() if t <= y1 and np.log10(t / y0) > 0.05 * span]
+        if txt:
+            a.set_ylim(y0, 10 ** (np.log10(y0) + span / (1.0 - room)))
+        a.set_yticks(ticks)
+        a.set_ylim(y0, a.get_ylim()[1])
+    if txt:
+        a.text(0.03, 0.97, txt, transform=a.transAxes, ha="left", va="top", fontsize=5.0,
+               color=style.COLORS["avalanche"], linespacing=1.15)
 
 
 def _plot_lost(b, data: dict) -> None:

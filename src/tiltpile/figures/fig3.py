@@ -6,16 +6,22 @@ Grains in critical clusters are dark, fully mobilized (critical) contacts green 
 centres (to the wall or floor for wall contacts), grains with a contact lost before the next frame
 ("failing") red when they were in a cluster, blue otherwise; the arrow is gravity.
 
-(b, bottom left) Spatial correlation. Over the quiet frames, the fraction of the failing grains
+(b, middle left) Spatial correlation. Over the quiet frames, the fraction of the failing grains
 that were in a cluster, N^f_c / N^f, against the fraction of the grains in clusters, N_c / N,
 binned in N_c / N; failure uncorrelated with clusters would put the points on y = x.
 
-(c, bottom right) Temporal correlation C(tau) (paper Eq. 2) between the largest cluster S_m(k)
+(c, middle right) Temporal correlation C(tau) (paper Eq. 2) between the largest cluster S_m(k)
 and the failure N^f(k + tau), pooled over the quiet periods of all runs
 (:func:`tiltpile.analysis.correlation_function_ensemble`). The paper's text defines N^f as the
 number of contacts that fail ("the number of contacts N^f that fail in the following frames")
 while its caption speaks of failing particles; the primary curve uses lost contacts
 (``n_lost``), the failing grains (``n_failing``) are drawn for comparison.
+
+(d, bottom) Orientation of the clusters: the distribution of the angle between the long axis of
+a cluster of at least ``orientation_min_size`` grains and gravity (0 = along g, 90 = across;
+isotropic clusters would spread evenly over 0-90, mean 45), quiet frames filled, avalanching
+frames as a line, with our median and mean and the paper's "roughly 60 deg"
+(:data:`tiltpile.paper_values.ORIENTATION_DEG`, the text on its Fig. 3 top) marked.
 
 Frame convention (analysis.avalanche): n_lost, n_failing, n_failing_in_cluster of frame k count
 what is lost between k and k + 1, for grains as they were at frame k; the last frame of a run has
@@ -31,6 +37,7 @@ import numpy as np
 import pandas as pd
 
 from tiltpile.analysis import stats as _st
+from tiltpile.paper_values import ORIENTATION_DEG
 
 from . import style
 from .data import Reads
@@ -232,20 +239,24 @@ def compute(ens, sample_seed: int | None = None, snapshot_offset_deg: float = SN
                    n_clusters_orientation=int(oq.size),
                    orientation_mean_avalanche_deg=float(oa.mean()) if oa.size else np.nan,
                    n_clusters_orientation_avalanche=int(oa.size))
+    # the angles themselves, for the orientation panel (d): plot data only, not in the JSON
+    d.update(orientation_quiet=oq, orientation_avalanche=oa,
+             orientation_min_size=int(orientation_min_size))
     return numbers, d
 
 
 def plot(data: dict, numbers: dict):
-    """(a) snapshot; (b) N^f_c / N^f versus N_c / N; (c) C(tau)."""
+    """(a) snapshot; (b) N^f_c / N^f versus N_c / N; (c) C(tau); (d) cluster orientation."""
     lay = data["snapshot"]
     ew, eh = snapshot_extent(lay) if lay is not None else (2.0, 1.0)
     left, right = 0.15, 0.97
     h_top = (right - left) * style.SINGLE_COLUMN_IN * eh / ew
-    height, gkw = style.stacked_layout([h_top, 1.3], [0.22], top_in=0.3, bottom_in=0.4,
-                                       left=left, right=right)
-    fig, axs = style.figure(2, 2, height=height, gridspec_kw=dict(gkw, wspace=0.45))
+    # rows: the pile, b and c, a spacer (room for b's and c's axis labels), d
+    height, gkw = style.stacked_layout([h_top, 1.3, 0.06, 1.05], [0.22, 0.22, 0.22], top_in=0.3,
+                                       bottom_in=0.4, left=left, right=right)
+    fig, axs = style.figure(4, 2, height=height, gridspec_kw=dict(gkw, wspace=0.45))
     gs = axs[0, 0].get_gridspec()
-    for a in axs[0]:
+    for a in (*axs[0], *axs[2], *axs[3]):
         a.remove()
     top = fig.add_subplot(gs[0, :])
     draw_snapshot(top, lay)
@@ -291,4 +302,52 @@ def plot(data: dict, numbers: dict):
     ax.legend(loc="upper right", handlelength=1.8, title=r"$N^f$:", title_fontsize=6.5,
               alignment="left")
     style.panel_label(ax, "c", x=0.04, y=0.96)
+
+    plot_orientation(fig.add_subplot(gs[3, :]), data, numbers)
     return fig
+
+
+ORIENTATION_BIN_DEG = 5.0   # bins of panel d (deg)
+
+
+def plot_orientation(ax, data: dict, numbers: dict) -> None:
+    """Panel d: the density (per degree) of the clusters' orientation to gravity, quiet frames
+    filled and avalanching frames as a line, with the isotropic level 1/90, our median and mean
+    over the quiet clusters (the JSON's orientation_median_deg, orientation_mean_deg) and the
+    paper's ~60 deg (``ORIENTATION_DEG``) as vertical lines (gids orientation_median,
+    orientation_mean, orientation_paper)."""
+    edges = np.arange(0.0, 90.0 + ORIENTATION_BIN_DEG / 2, ORIENTATION_BIN_DEG)
+    oq = np.asarray(data.get("orientation_quiet", []), float)
+    oa = np.asarray(data.get("orientation_avalanche", []), float)
+    top = 1.0 / 90.0
+    smin = data.get("orientation_min_size", 5)
+    if oq.size:
+        h, _ = np.histogram(oq, bins=edges, density=True)
+        ax.stairs(h, edges, fill=True, color=style.COLORS["grain"], lw=0,
+                  label=f"quiet ({oq.size} clusters, $s \\geq {smin}$)")
+        ax.stairs(h, edges, color=style.COLORS["guide"], lw=0.6)
+        top = max(top, float(h.max()))
+    if oa.size:
+        h, _ = np.histogram(oa, bins=edges, density=True)
+        ax.stairs(h, edges, color=style.COLORS["avalanche"], lw=0.8, label="avalanching")
+        top = max(top, float(h.max()))
+    ax.axhline(1.0 / 90.0, color=style.COLORS["guide"], lw=0.6, ls=":", label="isotropic")
+    med, mean = numbers.get("orientation_median_deg"), numbers.get("orientation_mean_deg")
+    headroom = 1.75                      # the top of the panel (above the data) holds the key
+    below = 1.08 / headroom              # the vertical lines stop under the key
+    if med is not None and np.isfinite(med):
+        ax.axvline(med, ymax=below, color=style.COLORS["quiet"], lw=1.0, gid="orientation_median",
+                   label=f"median {med:.0f}$^\\circ$")
+    if mean is not None and np.isfinite(mean):
+        ax.axvline(mean, ymax=below, color=style.COLORS["quiet"], lw=0.8, ls=(0, (1, 1)),
+                   gid="orientation_mean", label=f"mean {mean:.0f}$^\\circ$")
+    ax.axvline(ORIENTATION_DEG.value, ymax=below, color=style.COLORS["marginal"], lw=1.0, ls="--",
+               gid="orientation_paper", label=f"paper ~{ORIENTATION_DEG.value:g}$^\\circ$")
+    ax.set_xlim(0.0, 90.0)
+    ax.set_xticks(np.arange(0, 91, 15))
+    ax.set_ylim(0.0, headroom * top)
+    ax.set_xlabel(r"long axis of a cluster to gravity (deg)")
+    ax.set_ylabel("density (1/deg)")
+    ax.legend(loc="upper left", ncol=2, fontsize=5.5, handlelength=1.5, columnspacing=1.0,
+              borderaxespad=0.3, bbox_to_anchor=(0.06, 1.0))
+    style.panel_label(ax, "d", x=0.015, y=0.96)

@@ -246,6 +246,28 @@ def _s_max_far_near(fr: pd.DataFrame, far_below: float, width: float) -> tuple[f
             float(near.mean()) if len(near) else np.nan)
 
 
+def delta_label(numbers: dict) -> str:
+    """The pooled delta as the legend gives it, as the report gives it: ' (fit: delta = x
+    [lo, hi])' with the 95% interval over runs (delta_pooled_ci_low, _ci_high); without an
+    interval (fewer than 2 runs, no resamples) the fit's own error, ' (fit: delta = x +- e)';
+    '' without a fit."""
+    d = _num(numbers.get("delta_pooled"))
+    if not np.isfinite(d):
+        return ""
+    lo, hi = _num(numbers.get("delta_pooled_ci_low")), _num(numbers.get("delta_pooled_ci_high"))
+    if np.isfinite(lo) and np.isfinite(hi):
+        return rf" (fit: $\delta = {d:.2f}$ [{lo:.2f}, {hi:.2f}])"
+    e = _num(numbers.get("delta_pooled_err"))
+    if not np.isfinite(e):
+        return rf" (fit: $\delta = {d:.2f}$)"
+    return rf" (fit: $\delta = {d:.2f} \pm {e:.2f}$)"
+
+
+def _num(x) -> float:
+    """A number of the JSON as a float (None, from NaN, as NaN)."""
+    return float("nan") if x is None else float(x)
+
+
 def plot(data: dict, numbers: dict):
     """Main panel: P(s) per window with fits and the -delta_guide slope; insets xi, <S_max>."""
     fig, ax = style.figure(1, 1, height=3.1)
@@ -287,10 +309,7 @@ def plot(data: dict, numbers: dict):
         c = np.mean(np.log10(head["density"]) + dg * np.log10(head["center"]))
         s = np.array([float(data["s_min"]), 20.0 * data["s_min"]])
         ax.plot(s, 10 ** (c - dg * np.log10(s)), ls="--", lw=1.0, color=style.COLORS["guide"],
-                zorder=0, label=rf"slope $-{dg:g}$" + (
-                    rf" (fit: $\delta = {numbers['delta_pooled']:.2f} \pm "
-                    rf"{numbers['delta_pooled_err']:.2f}$)"
-                    if np.isfinite(numbers["delta_pooled"]) else ""))
+                zorder=0, label=rf"slope $-{dg:g}$" + delta_label(numbers))
     if empty:
         ax.text(0.02, 0.015, "no clusters: " + ", ".join(empty) + " (no quiet frame that far "
                 "before an onset)", transform=ax.transAxes, ha="left", va="bottom", fontsize=5.0,

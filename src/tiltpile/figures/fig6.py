@@ -213,11 +213,9 @@ def plot(data: dict, numbers: dict):
 
     b = data["bins"]
     if len(b):
-        sem = b["dz_std"] / np.sqrt(b["n"])
-        bx.errorbar(b["center"], b["dz_mean"], yerr=sem, fmt="s", ms=3, lw=0.7,
-                    color=style.COLORS["quiet"], label=r"$\langle \delta z \rangle$")
+        _plot_means(bx, b)
         bx.plot(b["center"], b["dz_min"], "o", ms=3, color=style.CYCLE[1],
-                label=r"min $\delta z$")
+                label=r"min $\delta z$", zorder=2)
         bx.set_xscale("log")
     bx.axhline(DZ_GLOBAL, color=style.COLORS["quiet"], ls="-.", lw=0.9,
                label="global (generalized isostaticity)")
@@ -235,3 +233,37 @@ def plot(data: dict, numbers: dict):
                 fontsize=5.0, color=style.COLORS["guide"])
     fig.tight_layout(h_pad=0.6)
     return fig
+
+
+# the drawing order of panel b: the markers of <delta z> under its error bars, so that a bar
+# shorter than the marker still shows across it (open markers)
+MEAN_MARKER_ZORDER = 3
+ERRORBAR_ZORDER = 4
+
+
+def _plot_means(bx, b) -> None:
+    """Panel b: <delta z> per size bin as open squares, with two bars drawn above them: the
+    spread of delta z over the bin's clusters (+-1 standard deviation, thin grey) and the
+    standard error of the mean (black, capped), which the bins' hundreds to millions of clusters
+    make smaller than the marker for most of them (the note says how small)."""
+    n = b["n"].to_numpy(float)
+    sd = b["dz_std"].to_numpy(float)
+    sem = sd / np.sqrt(n)
+    x, y = b["center"].to_numpy(float), b["dz_mean"].to_numpy(float)
+    spread = bx.errorbar(x, y, yerr=sd, fmt="none", lw=0.6, capsize=0,
+                         ecolor=style.COLORS["guide"], label=r"$\pm 1$ s.d. of $\delta z$",
+                         zorder=ERRORBAR_ZORDER)
+    err = bx.errorbar(x, y, yerr=sem, fmt="none", lw=0.9, capsize=1.8, capthick=0.7,
+                      ecolor=style.COLORS["quiet"], label=r"$\pm$ s.e. of the mean",
+                      zorder=ERRORBAR_ZORDER + 0.1)
+    bx.plot(x, y, ls="none", marker="s", ms=3.2, mfc="white", mec=style.COLORS["quiet"],
+            mew=0.8, color=style.COLORS["quiet"], label=r"$\langle \delta z \rangle$",
+            zorder=MEAN_MARKER_ZORDER)
+    for container in (spread, err):          # errorbar() puts its lines at the given zorder;
+        for artist in container.lines[1] + container.lines[2]:   # caps and bars alike
+            artist.set_zorder(container.lines[2][0].get_zorder())
+    ok = np.isfinite(sem)
+    if ok.any():
+        bx.text(0.98, 0.12, rf"s.e. of the mean $\leq$ {np.nanmax(sem[ok]):.2g}",
+                transform=bx.transAxes, ha="right", va="bottom", fontsize=5.0,
+                color=style.COLORS["guide"])
