@@ -409,3 +409,24 @@ def test_null_values_are_checked_before_anything_runs(smoke_ensemble, tmp_path, 
         err = capsys.readouterr().err.strip()
         assert "--null must be exact, auto, none or a number" in err and "\n" not in err
     assert not out.exists()
+
+
+def test_a_run_without_the_event_is_censored_at_the_end_of_its_tilt_not_left_out():
+    """The DEM's first onset at 20.45 deg where CD has none by 22 deg: the pair's difference is at
+    most 20.45 - 22, and the mean over all pairs is an upper bound; none censored: None."""
+    import math
+
+    from tiltpile.figures.same_piles import censored_difference
+
+    nan = math.nan
+    x = [nan, 19.65, 19.4, 13.0, 19.25, 17.25]
+    y = [20.45, 17.3, 20.3, 19.1, 21.8, 17.05]
+    c = censored_difference(x, y, [22.0] * 6, [22.0] * 6)
+    d = [20.45 - 22.0] + [b - a for a, b in zip(x[1:], y[1:])]
+    assert c["n_censored"] == 1 and c["bound"] == "at most" and c["n"] == 6
+    assert c["mean"] == pytest.approx(sum(d) / 6) and c["ci_low"] <= c["mean"] <= c["ci_high"]
+    low = censored_difference([10.0, 11.0, 12.0], [nan, 12.0, 13.0], [22.0] * 3, [21.0] * 3)
+    assert low["bound"] == "at least" and low["mean"] == pytest.approx((11.0 + 1.0 + 1.0) / 3)
+    both = censored_difference([nan, 11.0, 12.0], [10.0, nan, 13.0], [22.0] * 3, [21.0] * 3)
+    assert both["bound"] == "mixed" and both["n_censored"] == 2
+    assert censored_difference([10.0, nan], [11.0, nan], [22.0] * 2, [22.0] * 2) is None

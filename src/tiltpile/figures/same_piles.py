@@ -67,6 +67,9 @@ FIGURES = ("fig1_isostaticity", "fig2_avalanche_criterion", "fig3_clusters_failu
 # the per-seed numbers compared pile against pile (columns of preparation.per_run_table)
 PER_SEED = ("theta_first_onset", "theta_first_slide", "n_onsets", "z_quiet", "n_m_quiet",
             "z_start", "theta_first_change", "phi_start", "fabric_start", "ke_quiet")
+#: the per-seed angles of an event a run may not reach before its tilt ends: a run without one
+#: is censored at its last angle (its event comes later, if at all), not left out
+CENSORED = ("theta_first_onset", "theta_first_slide", "theta_first_change")
 # a shift larger than this many combined standard errors moves a figure number
 SIGMA_LIMIT = 2.0
 # the fewest common seeds compared (pile against pile, the figure numbers without an error) and
@@ -431,6 +434,8 @@ def pile_against_pile(ref, ens, fig2_ref: dict, fig2: dict, confidence: float = 
     if list(ta["run"]) != list(tb["run"]):
         raise ValueError("pile against pile needs the same seeds in the same order")
     out = {"seeds": [int(s) for s in ta["run"]], "per_seed": {}, "difference": {}}
+    end_x, end_y = tilt_ends(ref), tilt_ends(ens)
+    out["tilt_end"] = {"ref": end_x.tolist(), "value": end_y.tolist()}
     for c in PER_SEED:
         x, y = ta[c].to_numpy(float), tb[c].to_numpy(float)
         d = y - x
@@ -440,7 +445,43 @@ def pile_against_pile(ref, ens, fig2_ref: dict, fig2: dict, confidence: float = 
         out["difference"][c] = {"mean": ci["estimate"], "ci_low": ci["low"], "ci_high": ci["high"],
                                 "n": ci["n"], "median": float(np.nanmedian(d)) if np.isfinite(d).any()
                                 else math.nan, "sd": sd, "min_detectable": mdd}
+        if c in CENSORED:
+            cens = censored_difference(x, y, end_x, end_y, confidence)
+            if cens is not None:
+                out["difference"][c]["censored"] = cens
     return out
+
+
+def tilt_ends(ens) -> np.ndarray:
+    """Per run of ``ens`` (its seeds' order): the last angle its frames reach (deg)."""
+    f = ens.frames
+    return np.asarray([float(f.loc[f["run"] == s, "theta_deg"].max()) if (f["run"] == s).any()
+                       else math.nan for s in ens.seeds], float)
+
+
+def censored_difference(x, y, end_x, end_y, confidence: float = 0.95) -> dict | None:
+    """The paired difference y - x of an event's angle with the pairs where one run has no event
+    by the end of its tilt counted at their bound instead of left out: a run without it is
+    censored at its last angle (``end_x``, ``end_y``), so where x has none, x >= end_x and
+    y - x <= y - end_x; where y has none, y - x >= end_y - x. Returns None when no pair is
+    censored; else {"n_censored", "bound": "at most" (every censored pair bounded above),
+    "at least" (below) or "mixed" (both: the mean is not bounded), "mean", "ci_low", "ci_high",
+    "n"}: the mean over every pair with both or one event, the censored ones at their bound, with
+    its bootstrap interval; with "at most" the true mean lies at or below it, with "at least" at
+    or above. Pairs where neither run has the event stay out."""
+    x, y = np.asarray(x, float), np.asarray(y, float)
+    ex, ey = np.asarray(end_x, float), np.asarray(end_y, float)
+    up = ~np.isfinite(x) & np.isfinite(y)           # x later than its end: y - x at most y - end_x
+    down = np.isfinite(x) & ~np.isfinite(y)         # y later than its end: y - x at least end_y - x
+    if not (up.any() or down.any()):
+        return None
+    d = y - x
+    d[up] = y[up] - ex[up]
+    d[down] = ey[down] - x[down]
+    ci = bootstrap_ci(d, confidence=confidence)
+    bound = "mixed" if up.any() and down.any() else "at most" if up.any() else "at least"
+    return {"n_censored": int(up.sum() + down.sum()), "bound": bound, "mean": ci["estimate"],
+            "ci_low": ci["low"], "ci_high": ci["high"], "n": ci["n"]}
 
 
 # ----------------------------------------------------------------------------------------------

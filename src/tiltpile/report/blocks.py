@@ -198,7 +198,7 @@ def same_piles(root="figures") -> dict[str, dict]:
             ref, value = _mean(s.get("ref") or []), _mean(s.get("value") or [])
             rows[key] = {"ref": ref, "value": value, "diff": num(diff.get("mean")),
                          "low": num(diff.get("ci_low")), "high": num(diff.get("ci_high")),
-                         "n": diff.get("n", 0),
+                         "n": diff.get("n", 0), "censored": diff.get("censored"),
                          "ratio": value / ref if ref and math.isfinite(ref) else math.nan}
         sides, meta, pops = {}, {}, {}
         for label in (study.get("ref"), study.get("label")):

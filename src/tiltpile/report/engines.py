@@ -95,6 +95,11 @@ def pile_table(study: dict) -> list[str]:
         diff = (f"{_f(_num(d['mean']), '+' + fmt)} [{_f(_num(d['ci_low']), '+' + fmt)}, "
                 f"{_f(_num(d['ci_high']), '+' + fmt)}] ({d['n']})" if math.isfinite(_num(d["mean"]))
                 else f"n/a ({d['n']})")
+        c = d.get("censored")
+        if c:
+            diff += (f"; {c['bound']} {_f(_num(c['mean']), '+' + fmt)} [{_f(_num(c['ci_low']), '+' + fmt)}, "
+                     f"{_f(_num(c['ci_high']), '+' + fmt)}] ({c['n']}) counting the {c['n_censored']} "
+                     "without the event at the end of its tilt")
         lines.append(f"| {label} | {_f(_mean(s['ref']), fmt)} | {_f(_mean(s['value']), fmt)} | {diff} |")
     return lines
 

@@ -137,7 +137,8 @@ def _pile_rows(study: dict | None) -> list[dict]:
             continue
         rows.append({"label": label, "fmt": fmt, "ref": _engines._mean(s["ref"]),
                      "value": _engines._mean(s["value"]), "diff": _num(d["mean"]),
-                     "low": _num(d["ci_low"]), "high": _num(d["ci_high"]), "n": d["n"]})
+                     "low": _num(d["ci_low"]), "high": _num(d["ci_high"]), "n": d["n"],
+                     "censored": d.get("censored")})
     return rows
 
 
