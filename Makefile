@@ -508,6 +508,32 @@ else
 	$(ANALYSIS_ENV) $(PY) -m tiltpile solver-study $(SOLVER_ARGS) --records-only
 endif
 
+# `make stiffness-study [STIFFNESS_DATA=/path] [STIFFNESS_FIGURES=figures/stiffness-study]
+# [STIFFNESS_RUNS=6] [STIFFNESS_CD=dir] [WORKERS=W] [ONLY=S1,S2] [NULL=K] [RECORDS_ONLY=1]`: the DEM in
+# its rigid limit (`tiltpile stiffness-study`, docs/dem.md "The stiffness series"): default-dem's
+# piles at 4 k_n (dt / 2, STIFFNESS_RUNS piles) and 16 k_n (dt / 4, half of them) in
+# STIFFNESS_DATA/<setting>/, k_n from default-dem's committed records; each against k_n and against
+# Contact Dynamics' records of the same piles (STIFFNESS_CD: the solver study's committed setting,
+# the default preset), every number against 1/k_n and extrapolated where the trend allows it; the
+# figure, JSON and report section in STIFFNESS_FIGURES. Resumable across sessions; RECORDS_ONLY=1
+# runs nothing and writes the records of what is finished, so that they can be committed.
+STIFFNESS_DATA ?= data/stiffness-study
+STIFFNESS_FIGURES ?= figures/stiffness-study
+STIFFNESS_RUNS ?= 6
+STIFFNESS_CD ?= figures/solver-study/records/reference
+STIFFNESS_ARGS = --data '$(STIFFNESS_DATA)' --figures '$(STIFFNESS_FIGURES)' --runs $(STIFFNESS_RUNS) \
+                 --reference-records figures/default-dem/records --cd '$(STIFFNESS_CD)' \
+                 --paper-records figures/paper-5x-dem/records \
+                 $(if $(WORKERS),--workers $(WORKERS)) $(if $(ONLY),--only '$(ONLY)') $(if $(NULL),--null $(NULL))
+.PHONY: stiffness-study
+stiffness-study: | $(STAMP)
+ifeq ($(RECORDS_ONLY),)
+	$(PY) -m tiltpile stiffness-study $(STIFFNESS_ARGS) --runs-only
+	$(ANALYSIS_ENV) $(PY) -m tiltpile stiffness-study $(STIFFNESS_ARGS)
+else
+	$(ANALYSIS_ENV) $(PY) -m tiltpile stiffness-study $(STIFFNESS_ARGS) --records-only
+endif
+
 # `make study KEY=section.key VALUES="v1 v2 ..." [PRESET=default] [RUNS=M] [WORKERS=W] [NAME=name]
 #             [HISTORY=preset|repose+D] [DATA=/path/outside/the/checkout] [STUDY_FIGURES=dir]`:
 # a parameter study (`tiltpile study`, docs/cli.md "How to study another parameter"). For each

@@ -17,6 +17,7 @@ error path), and one per command of ``COMMANDS``, named after it: ``simulate``, 
 and the docs) and ``import_`` (``tiltpile import``). docs/cli.md gives every command's options
 (tests/workflow/test_cli_doc.py checks them against the parser).
 ``solver_study``: ``tiltpile solver-study``.
+``stiffness_study``: ``tiltpile stiffness-study``.
 ``config``: ``tiltpile config`` (every configuration key, from ``config.describe_keys``).
 """
 
@@ -31,7 +32,7 @@ from tiltpile import config as cfgmod
 
 COMMANDS = ("simulate", "dem", "ensemble", "observables", "verify", "report", "bench", "info", "export",
             "movie", "repose", "zcount", "record", "same-piles", "study", "definitions", "docs",
-            "solver-study", "import", "config")
+            "solver-study", "stiffness-study", "import", "config")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -38,6 +38,8 @@ TEMPLATE = "main.md.j2"
 #: the solver study's report section, as `tiltpile solver-study` writes it (tiltpile.studies.solver
 #: renders it from its JSON; the report, a layer below, includes the text)
 SOLVER_SECTION = Path("solver-study") / "solver_study.md"
+#: the stiffness study's section, as `tiltpile stiffness-study` writes it (likewise)
+STIFFNESS_SECTION = Path("stiffness-study") / "stiffness_study.md"
 
 
 def headline(ours: str) -> str:
@@ -239,6 +241,8 @@ def context(root="figures", claims: list[Claim] | None = None) -> dict:
             "rates": _rates(root, claims),
             "friction": {"answer": _friction.answer(mc)} if friction else None,
             "solver": solver.read_text().strip("\n") if solver.is_file() else None,
+            "stiffness": (stiff.read_text().strip("\n") if (stiff := Path(root) / STIFFNESS_SECTION).is_file()
+                          else None),
             "verdicts": (AGREES, DISAGREES, INCONCLUSIVE, MISSING)}
 
 

@@ -25,37 +25,43 @@ the committed setting's (``reference``), each compared with it:
 
 The settings are data (:class:`Setting`: name = the directory of its runs and records, the
 override, the axis it varies); :func:`plan` validates them all through the configuration
-module before anything runs (an unknown key or an out-of-range value is one ``ConfigError``
-line). Outputs (:func:`write`): ``FIGURES/solver_study.{json,png,pdf}`` (the JSON: every
+module (:func:`tiltpile.studies.settings.configure`) before anything runs (an unknown key or
+an out-of-range value is one ``ConfigError`` line). Outputs (:func:`write`): ``FIGURES/solver_study.{json,png,pdf}`` (the JSON: every
 setting's numbers, every claim's dependence on the solver, and ``chart``, the points of the
 figure), ``FIGURES/solver_study.md`` (:func:`render`, the report section "What the solver's
 choice changes"). Each comparison is kept in ``FIGURES/same-piles/<setting>/`` (``same_piles.json``
 and both sides' figure documents, as ``tiltpile same-piles`` writes them) with the digest of its
 inputs (the records used, the figures' and analysis' code, the notebooks), and reused while that
-digest holds: a study resumed over sessions computes only what changed.
+digest holds: a study resumed over sessions computes only what changed. The machinery is
+:mod:`tiltpile.studies.settings`, which the stiffness study shares.
 
 The command is ``tiltpile solver-study`` (:mod:`tiltpile.cli.solver_study`).
 """
 
 from __future__ import annotations
 
-import hashlib
 import json
 import math
-import re
 from dataclasses import dataclass
 from pathlib import Path
 
 from tiltpile import config as cfgmod
 
+# the machinery every study shares (studies.settings); also re-exported under this module's name,
+# as the solver-study command and its tests use it (solver.runs_doc, solver.RUNS_FILE, ...)
+from .settings import (COMPARISONS, INPUTS, NAME_RE, REFERENCE, RUNS_FILE, RUNS_FORMAT, Plan,  # noqa: F401
+                       Planned, check_preset, check_runs, code_digest, compare, compare_settings,
+                       configure, cost, failures, fingerprint, flipped, health_stops, read_runs,
+                       recorded, runs_doc, setting_entry, stop_rule, verdicts, write_runs)
+from .settings import documents as _documents
+from .settings import fmt as _f
+from .settings import num as _num
+from .settings import seeds_text as _seeds_text
+from .settings import shift as _shift  # noqa: F401
+from .settings import shift_text as _shift_text
+from .settings import stops_text as _stops_text
+
 NAME = "solver_study"
-REFERENCE = "reference"
-#: a setting's runs as the manifest recorded them, kept in its records directory
-RUNS_FILE = "runs.json"
-RUNS_FORMAT = "tiltpile-solver-study-runs/1"
-#: below FIGURES: one directory per setting holding its comparison with the reference
-COMPARISONS = "same-piles"
-INPUTS = "inputs.json"
 SECTION = "What the solver's choice changes"
 
 
@@ -67,6 +73,10 @@ class Setting:
     name: str
     override: str | None
     axis: str
+
+    @property
+    def overrides(self) -> tuple[str, ...]:
+        return () if self.override is None else (self.override,)
 
     @property
     def key(self) -> str | None:
@@ -108,36 +118,11 @@ N_M_FIGURES = {
     "fig7": "rigid clusters: a mobilized contact is one bar, not two",
 }
 
-_NAME_RE = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.=+-]*")
+_NAME_RE = NAME_RE
 
 
 # ----------------------------------------------------------------------------------------------
-# the plan, validated before anything runs
-
-
-@dataclass(frozen=True)
-class Planned:
-    setting: Setting
-    config: cfgmod.Config
-
-
-@dataclass(frozen=True)
-class Plan:
-    """The study's preset, its overrides of every setting (``base``), the runs per setting
-    (seeds 0 .. runs - 1) and its settings with their validated configurations, the committed
-    one first."""
-    preset: str
-    base: tuple[str, ...]
-    runs: int
-    entries: tuple[Planned, ...]
-
-    @property
-    def seeds(self) -> list[int]:
-        return list(range(self.runs))
-
-    @property
-    def reference(self) -> Planned:
-        return self.entries[0]
+# the plan, validated before anything runs (studies.settings: Plan, Planned, configure)
 
 
 def _resolve(text: str) -> Setting:
@@ -164,277 +149,30 @@ def plan(preset: str = "default", base=(), only=None, runs: int = 6) -> Plan:
     value) for an unknown preset, key or setting, a value out of range, ``runs`` < 1, a setting
     named twice or one whose configuration is another's (the committed one's, say). ``only``:
     names of ``SETTINGS`` or overrides ``solver.key=value`` (None: every setting); the committed
-    setting is always planned (the others are compared with it)."""
-    if isinstance(runs, bool) or not isinstance(runs, int) or runs < 1:
-        raise cfgmod.ConfigError(f"--runs must be at least 1, got {runs!r}")
-    if preset not in cfgmod.PRESETS:
-        raise cfgmod.ConfigError(f"--preset {preset!r}: unknown; known presets: "
-                                 f"{', '.join(cfgmod.PRESETS)}")
+    setting is always planned (the others are compared with it). Every setting runs the seeds
+    0 .. runs - 1."""
+    check_runs(runs)
+    check_preset(preset)
     base = tuple(base)
     chosen = list(SETTINGS) if only is None else [SETTINGS[0]] + [_resolve(t) for t in only
                                                                   if t.strip() != REFERENCE]
     if only is not None and len(chosen) < 2:
         raise cfgmod.ConfigError("--only: name at least one setting besides the reference")
-    entries, names, hashes = [], set(), {}
-    for s in chosen:
-        if s.name in names:
-            raise cfgmod.ConfigError(f"--only: setting {s.name} named twice")
-        names.add(s.name)
-        try:
-            cfg = cfgmod.load(preset, None, [*base, *([s.override] if s.override else [])])
-        except cfgmod.ConfigError as e:
-            where = "--set" if s.override is None else f"setting {s.name}"
-            raise cfgmod.ConfigError(f"{where}: {e}") from None
-        h = cfg.hash()
-        if h in hashes:
-            raise cfgmod.ConfigError(f"setting {s.name} is the configuration of {hashes[h]}: "
-                                     "nothing to compare")
-        hashes[h] = s.name
-        entries.append(Planned(s, cfg))
-    return Plan(preset, base, runs, tuple(entries))
+    return Plan(preset, base, runs, configure(preset, base, chosen, lambda s: range(runs)))
 
 
 # ----------------------------------------------------------------------------------------------
-# the runs as the manifest recorded them: done, stopped by the health rules, failed otherwise
-
-
-def stop_rule(error: str | None) -> str | None:
-    """The rule that stopped a run, from the error its manifest records: the health limit
-    (``health.energy_stop``, ...), "runaway" (non-finite positions or grains out of the box),
-    "not at rest" (a deposition or history leg that did not settle), "simulation stop" (another
-    ``SimulationError``); None for a failure that is not a stop of the simulation (a crash, a
-    full disk, a busy file: the run is retried)."""
-    if not error or not str(error).startswith("SimulationError"):
-        return None
-    text = str(error)
-    m = re.search(r"health\.\w+", text)
-    if m:
-        return m.group(0)
-    if "non-finite" in text or "left the box" in text:
-        return "runaway"
-    if "not at rest" in text:
-        return "not at rest"
-    return "simulation stop"
-
-
-def _one_line(text, limit: int = 300) -> str | None:
-    if text is None:
-        return None
-    t = " ".join(str(text).split())
-    return t if len(t) <= limit else t[: limit - 3] + "..."
-
-
-def runs_doc(manifest: dict | None, old: dict | None, config_hash: str) -> dict:
-    """{format, config_hash, runs: {seed: {status, stop, error, seconds, sweeps, steps,
-    capped_steps}}} of a setting: the manifest's runs (their last attempt), over ``old`` (the
-    same document as written before, kept for seeds the manifest no longer lists, e.g. after its
-    run files were moved away; dropped when of another configuration)."""
-    runs = {}
-    if old and old.get("config_hash") == config_hash:
-        runs.update(old.get("runs") or {})
-    for s, r in ((manifest or {}).get("runs") or {}).items():
-        if r.get("status") == "pending":
-            continue
-        err = r.get("error") if r.get("status") == "failed" else None
-        runs[str(int(s))] = {"status": r.get("status"), "stop": stop_rule(err),
-                             "error": _one_line(err),
-                             **{k: r.get(k) for k in ("seconds", "sweeps", "steps", "capped_steps")}}
-    return {"format": RUNS_FORMAT, "config_hash": config_hash,
-            "runs": {k: runs[k] for k in sorted(runs, key=int)}}
-
-
-def read_runs(rec_dir) -> dict | None:
-    p = Path(rec_dir) / RUNS_FILE
-    if not p.is_file():
-        return None
-    try:
-        doc = json.loads(p.read_text())
-    except ValueError:
-        return None
-    return doc if isinstance(doc, dict) and doc.get("format") == RUNS_FORMAT else None
-
-
-def write_runs(rec_dir, manifest: dict | None, config_hash: str) -> dict:
-    """Write ``rec_dir/runs.json`` (:func:`runs_doc` over the one there); returns it."""
-    from tiltpile.figures import style
-
-    old = read_runs(rec_dir)
-    doc = runs_doc(manifest, old, config_hash)
-    if doc != old:      # an unchanged file is left as it is (its time stamp too)
-        Path(rec_dir).mkdir(parents=True, exist_ok=True)
-        style.write_json(Path(rec_dir) / RUNS_FILE, doc)
-    return doc
-
-
-def health_stops(doc: dict | None, seeds) -> list[dict]:
-    """[{seed, rule, message}] of the runs of ``seeds`` the health rules stopped."""
-    runs = (doc or {}).get("runs") or {}
-    out = []
-    for s in seeds:
-        r = runs.get(str(s))
-        if r and r.get("status") == "failed" and r.get("stop"):
-            out.append({"seed": int(s), "rule": r["stop"], "message": r.get("error")})
-    return out
-
-
-def failures(doc: dict | None, seeds) -> list[dict]:
-    """[{seed, error}] of the runs of ``seeds`` that failed otherwise (retried next time)."""
-    runs = (doc or {}).get("runs") or {}
-    return [{"seed": int(s), "error": runs[str(s)].get("error")} for s in seeds
-            if str(s) in runs and runs[str(s)].get("status") == "failed"
-            and not runs[str(s)].get("stop")]
-
-
-# ----------------------------------------------------------------------------------------------
-# records, cost, inputs' digest
-
-
-def recorded(rec_dir, seeds) -> list[int]:
-    """The seeds of ``seeds`` whose record ``rec_dir/run_SSSS.npz`` exists."""
-    d = Path(rec_dir)
-    return [s for s in seeds if (d / f"run_{s:04d}.npz").is_file()]
-
-
-def cost(rec_dir, seeds) -> dict:
-    """What a run of the setting costs, from its records of ``seeds``
-    (:func:`tiltpile.analysis.ensemble_data.ensemble_cost`): sweeps, steps and capped steps per
-    run (means), seconds per run (median wall seconds of the runs timed whole) and
-    ``core_hours_per_run`` (the same in hours: one run is one single-threaded process)."""
-    from tiltpile.analysis.ensemble_data import ensemble_cost
-    from tiltpile.record import read_meta
-
-    costs = [dict(read_meta(Path(rec_dir) / f"run_{s:04d}.npz").get("cost") or {})
-             for s in recorded(rec_dir, seeds)]
-    c = ensemble_cost(costs) if costs else {"runs_timed": 0, "seconds_per_run": None,
-                                            "steps_per_run": None, "sweeps_per_run": None,
-                                            "capped_steps_per_run": None}
-    sec = c.get("seconds_per_run")
-    return {**c, "core_hours_per_run": None if sec is None else sec / 3600.0}
-
-
-def code_digest(notebooks_dir="notebooks") -> str:
-    """SHA-256 of the code a comparison's numbers come from: the figures' notebooks
-    (``same_piles.FIGURES``), the figures and analysis packages' sources and tiltpile's
-    version."""
-    import tiltpile
-    from tiltpile import analysis, figures
-    from tiltpile.figures import same_piles as sp
-
-    files = (sorted(Path(figures.__file__).parent.glob("*.py"))
-             + sorted(Path(analysis.__file__).parent.rglob("*.py"))
-             + [Path(notebooks_dir) / f"{stem}.ipynb" for stem in sp.FIGURES])
-    h = hashlib.sha256(tiltpile.__version__.encode())
-    for f in files:
-        h.update(f"{f.parent.name}/{f.name}\0".encode())
-        h.update(f.read_bytes() if f.is_file() else b"(missing)")
-    return h.hexdigest()
-
-
-def _records_digest(rec_dir, seeds) -> dict[str, str]:
-    return {str(s): hashlib.sha256((Path(rec_dir) / f"run_{s:04d}.npz").read_bytes()).hexdigest()
-            for s in seeds}
-
-
-def fingerprint(code: str, sides: dict, seeds, null_flips: int) -> dict:
-    """What a cached comparison was computed from: the code digest, the seeds, the flips of the
-    null and, per side ({label: records directory}), the SHA-256 of each record used."""
-    return {"code": code, "seeds": [int(s) for s in seeds], "null_flips": int(null_flips),
-            "records": {label: _records_digest(d, seeds) for label, d in sides.items()}}
-
-
-def _load(rec_dir, preset: str, seeds):
-    from tiltpile.figures import data
-    from tiltpile.figures import same_piles as sp
-
-    ens = data.load(rec_dir, preset, cutoff=0.02, lost_gap=None)
-    return sp.subset(ens, seeds)
-
-
-def _read_cached(out: Path, fp: dict, labels) -> dict | None:
-    """The comparison kept in ``out`` when its inputs' digest is ``fp``, with its documents."""
-    from tiltpile.figures import same_piles as sp
-
-    try:
-        if json.loads((out / INPUTS).read_text()) != fp:
-            return None
-        doc = json.loads((out / f"{sp.NAME}.json").read_text())
-        doc["documents"] = {lab: {stem: json.loads((out / lab / f"{stem}.json").read_text())
-                                  for stem in sp.FIGURES} for lab in labels}
-    except (OSError, ValueError):
-        return None
-    return doc
-
-
-def compare(ref_dir, rec_dir, name: str, seeds, out_dir, preset: str, *, code: str,
-            null_flips: int = 0, workers: int = 1, notebooks_dir="notebooks", progress=None) -> dict:
-    """The same-piles study (:func:`tiltpile.figures.same_piles.study`) of the setting's records
-    ``rec_dir`` against the committed setting's ``ref_dir`` on ``seeds``, written to ``out_dir``
-    (:func:`tiltpile.figures.same_piles.write_study`) with its inputs' digest; the one kept
-    there when the digest is the same. Returns it in JSON form (NaN as None), with ``documents``."""
-    import tempfile
-
-    from tiltpile.figures import same_piles as sp
-    from tiltpile.figures import style
-
-    out = Path(out_dir)
-    fp = fingerprint(code, {REFERENCE: ref_dir, name: rec_dir}, seeds, null_flips)
-    kept = _read_cached(out, fp, (REFERENCE, name))
-    if kept is not None:
-        return kept
-    ref, ens = _load(ref_dir, preset, seeds), _load(rec_dir, preset, seeds)
-    with tempfile.TemporaryDirectory(prefix="tiltpile-solver-study-") as scratch:
-        doc = sp.study(ref, ens, REFERENCE, name, notebooks_dir=notebooks_dir, progress=progress,
-                       null_flips=null_flips, scratch=scratch, workers=workers)
-    (out / INPUTS).unlink(missing_ok=True)
-    sp.write_study(doc, out)
-    style.write_json(out / INPUTS, fp)
-    return _read_cached(out, fp, (REFERENCE, name))
+# the runs, records, cost, comparisons and claims: studies.settings (stop_rule, runs_doc,
+# read_runs, write_runs, health_stops, failures, recorded, cost, code_digest, fingerprint,
+# compare, verdicts, flipped), imported above
 
 
 def reference_documents(ref_dir, seeds, out_dir, preset: str, *, code: str,
                         notebooks_dir="notebooks", progress=None) -> dict[str, dict]:
     """{stem: figure document} of the committed setting on ``seeds`` (its verdicts), kept in
-    ``out_dir`` with its inputs' digest like a comparison."""
-    from tiltpile.figures import same_piles as sp
-    from tiltpile.figures import style
-
-    out = Path(out_dir)
-    fp = fingerprint(code, {REFERENCE: ref_dir}, seeds, 0)
-    try:
-        if json.loads((out / INPUTS).read_text()) == fp:
-            return {stem: json.loads((out / f"{stem}.json").read_text()) for stem in sp.FIGURES}
-    except (OSError, ValueError):
-        pass
-    if progress:
-        progress(f"{REFERENCE}: the figures on its {len(seeds)} seeds")
-    docs = sp.figure_documents(_load(ref_dir, preset, seeds), sp.FIGURES, notebooks_dir)
-    (out / INPUTS).unlink(missing_ok=True)
-    out.mkdir(parents=True, exist_ok=True)
-    for stem, d in docs.items():
-        style.write_json(out / f"{stem}.json", d)
-    style.write_json(out / INPUTS, fp)
-    return {stem: json.loads((out / f"{stem}.json").read_text()) for stem in sp.FIGURES}
-
-
-# ----------------------------------------------------------------------------------------------
-# claims
-
-
-def verdicts(docs: dict[str, dict]) -> dict[str, dict]:
-    """{claim key: {verdict, ours}} of every claim of the report on the figure documents
-    ``docs`` ({stem: document}), as the report judges them."""
-    from tiltpile.report.claims import CLAIMS
-    from tiltpile.report.document import judge_all
-
-    return {c.key: {"verdict": v, "ours": ours} for c, ours, v, _note, _src in judge_all(docs, CLAIMS)}
-
-
-def flipped(ref: dict, other: dict) -> list[str]:
-    """The claims whose verdict differs between two :func:`verdicts` (neither "not measured")."""
-    from tiltpile.report.judging import MISSING
-
-    return [k for k, r in ref.items() if k in other and MISSING not in (r["verdict"], other[k]["verdict"])
-            and r["verdict"] != other[k]["verdict"]]
+    ``out_dir`` with its inputs' digest like a comparison (:func:`studies.settings.documents`)."""
+    return _documents(ref_dir, seeds, out_dir, preset, code=code, label=REFERENCE,
+                      notebooks_dir=notebooks_dir, progress=progress)
 
 
 def n_m_reason(figure: str) -> str | None:
@@ -446,67 +184,18 @@ def n_m_reason(figure: str) -> str | None:
 # the study's numbers
 
 
-def _num(x) -> float:
-    return math.nan if x is None else float(x)
-
-
-def _shift(pp: dict, key: str) -> dict:
-    """The mean paired difference of a per-seed number, its interval, seeds, and the committed
-    setting's mean, from a pile-against-pile document; ``relative``: the shift over that mean."""
-    d = pp["difference"][key]
-    ref = [x for x in map(_num, pp["per_seed"][key]["ref"]) if math.isfinite(x)]
-    ref_mean = sum(ref) / len(ref) if ref else math.nan
-    m = _num(d.get("mean"))
-    rel = m / ref_mean if math.isfinite(m) and math.isfinite(ref_mean) and ref_mean else math.nan
-    return {"mean": m, "ci_low": _num(d.get("ci_low")), "ci_high": _num(d.get("ci_high")),
-            "n": d.get("n"), "ref_mean": ref_mean, "relative": rel}
-
-
 def setting_numbers(p: Planned, runs: dict | None, rec_dir, seeds, ref_done, comparison: dict | None,
                     ref_verdicts: dict | None) -> dict:
-    """One setting's entry of the study (module docstring): status (done, partial, pending,
+    """One setting's entry of the study (module docstring; :func:`studies.settings.setting_entry`
+    after the setting's name, override, axis and solver keys): status (done, partial, pending,
     failed), seeds done and compared, health stops and other failures, cost, the comparison's
     counts, the pile-against-pile shifts (``n_m_shift``: <n_m> of the quiet frames), the claims'
     verdicts beside the committed setting's on the same seeds and the claims flipped."""
-    from tiltpile.figures import same_piles as sp
-
     s = p.setting
-    done = recorded(rec_dir, seeds)
-    stops = health_stops(runs, seeds)
-    status = ("failed" if stops else "done" if len(done) == len(seeds)
-              else "partial" if len(set(done) & set(ref_done)) >= sp.MIN_SEEDS else "pending")
-    out = {"name": s.name, "override": s.override, "axis": s.axis, "key": s.key, "value": s.value,
-           "committed": s.name == REFERENCE, "config_hash": p.config.hash(),
-           "solver": {k: getattr(p.config.solver, k) for k in ("sweep", "max_iter", "tol", "dt")},
-           "status": status, "seeds_planned": len(seeds), "seeds_done": done,
-           "health_stops": stops, "failures": failures(runs, seeds), "cost": cost(rec_dir, seeds),
-           "seeds_compared": [], "comparison": None, "pile_against_pile": None, "n_m_shift": None,
-           "verdicts": None, "flipped": None}
-    if comparison is not None:
-        docs = comparison["documents"]
-        mine, theirs = verdicts(docs[s.name]), verdicts(docs[REFERENCE])
-        pp = comparison["pile_against_pile"]
-        out.update(
-            seeds_compared=comparison["seeds"],
-            comparison={k: comparison[k] for k in ("n_numbers", "n_with_error", "n_moved",
-                                                   "sigma_limit")}
-            | {"moved": [f"{m['figure']}.{m['key']}" for m in comparison["moved"]],
-               "null": (None if not comparison.get("null") else
-                        {k: comparison["null"][k] for k in ("flips", "median", "p95", "p_value",
-                                                            "observed")})},
-            pile_against_pile={k: _shift(pp, k) for k in pp["difference"]},
-            n_m_shift=_shift(pp, "n_m_quiet"),
-            verdicts={k: {"reference": theirs[k]["verdict"], "setting": mine[k]["verdict"],
-                          "ours_reference": theirs[k]["ours"], "ours": mine[k]["ours"]}
-                      for k in theirs},
-            flipped=flipped(theirs, mine))
-    elif s.name == REFERENCE and ref_verdicts is not None:
-        out["verdicts"] = {k: {"reference": v["verdict"], "setting": v["verdict"],
-                               "ours_reference": v["ours"], "ours": v["ours"]}
-                           for k, v in ref_verdicts.items()}
-        out["seeds_compared"] = list(done)
-        out["flipped"] = []
-    return out
+    head = {"name": s.name, "override": s.override, "axis": s.axis, "key": s.key, "value": s.value,
+            "committed": s.name == REFERENCE, "config_hash": p.config.hash(),
+            "solver": {k: getattr(p.config.solver, k) for k in ("sweep", "max_iter", "tol", "dt")}}
+    return setting_entry(head, p, runs, rec_dir, seeds, ref_done, comparison, ref_verdicts)
 
 
 def claims_numbers(settings: list[dict], ref_verdicts: dict | None) -> list[dict]:
@@ -580,44 +269,25 @@ def decisions(settings: list[dict]) -> dict:
             "most_n_m_shift": None if most is None else most["n_m_shift"]}
 
 
+
+
 def analyse(the_plan: Plan, records_root, comparisons_root, *, null_flips: int = 0, workers: int = 1,
             notebooks_dir="notebooks", progress=None) -> dict:
     """The study's numbers from the settings' records (``records_root/<name>/``: run_*.npz and
     runs.json), each setting with 2 or more seeds in common with the committed one (and no health
-    stop) compared with it (:func:`compare`, kept in ``comparisons_root/<name>/``). Returns
-    {reference, runs, sigma_limit, null_flips, settings: [setting_numbers], claims:
-    [claims_numbers], decisions, chart: [chart_points]}."""
+    stop) compared with it (:func:`studies.settings.compare_settings`, kept in
+    ``comparisons_root/<name>/``). Returns {reference, runs, sigma_limit, null_flips, settings:
+    [setting_numbers], claims: [claims_numbers], decisions, chart: [chart_points]}."""
     from tiltpile.figures import same_piles as sp
     from tiltpile.figures import style
 
-    records_root, comparisons_root = Path(records_root), Path(comparisons_root)
+    records_root = Path(records_root)
     seeds = the_plan.seeds
-    code = code_digest(notebooks_dir)
-    ref_dir = records_root / REFERENCE
-    ref_done = recorded(ref_dir, seeds)
-    comps: dict[str, dict | None] = {}
-    for p in the_plan.entries[1:]:
-        name = p.setting.name
-        rec = records_root / name
-        runs = read_runs(rec)
-        common = sorted(set(recorded(rec, seeds)) & set(ref_done))
-        if health_stops(runs, seeds) or len(common) < sp.MIN_SEEDS:
-            comps[name] = None
-            continue
-        say = None if progress is None else (lambda line, n=name: progress(f"{n}: {line}"))
-        if progress:
-            progress(f"{name} against {REFERENCE} on {len(common)} seeds")
-        comps[name] = compare(ref_dir, rec, name, common, comparisons_root / name, the_plan.preset,
-                              code=code, null_flips=null_flips if len(common) >= sp.JACKKNIFE_SEEDS
-                              else 0, workers=workers, notebooks_dir=notebooks_dir, progress=say)
-    ref_verdicts = None
-    if len(ref_done) >= 1:
-        full = next((c for c in comps.values() if c is not None and c["seeds"] == ref_done), None)
-        docs = (full["documents"][REFERENCE] if full is not None else
-                reference_documents(ref_dir, ref_done, comparisons_root / REFERENCE,
-                                    the_plan.preset, code=code, notebooks_dir=notebooks_dir,
-                                    progress=progress))
-        ref_verdicts = verdicts(docs)
+    ref_done, comps, ref_docs = compare_settings(
+        the_plan.entries, records_root, comparisons_root, the_plan.preset,
+        code=code_digest(notebooks_dir), null_flips=null_flips, workers=workers,
+        notebooks_dir=notebooks_dir, progress=progress)
+    ref_verdicts = None if ref_docs is None else verdicts(ref_docs)
     settings = []
     for p in the_plan.entries:
         rec = records_root / p.setting.name
@@ -756,35 +426,6 @@ WORDS = {
     "pending": "Not yet computed: {list}.",
     "none_compared": "No setting is compared yet.",
 }
-
-
-def _f(x, fmt: str) -> str:
-    v = _num(x)
-    return "n/a" if not math.isfinite(v) else format(v, fmt)
-
-
-def _shift_text(sh: dict | None) -> str:
-    if not sh or not math.isfinite(_num(sh.get("mean"))):
-        return "n/a"
-    band = (f" [{_f(sh['ci_low'], '+.4f')}, {_f(sh['ci_high'], '+.4f')}]"
-            if math.isfinite(_num(sh.get("ci_low"))) and math.isfinite(_num(sh.get("ci_high"))) else "")
-    rel = f" ({_f(100 * _num(sh['relative']), '+.1f')}%)" if math.isfinite(_num(sh.get("relative"))) else ""
-    return f"{_f(sh['mean'], '+.4f')}{band}{rel}"
-
-
-def _seeds_text(seeds) -> str:
-    s = sorted(int(x) for x in seeds)
-    if not s:
-        return "none"
-    return f"{s[0]}-{s[-1]}" if s == list(range(s[0], s[-1] + 1)) and len(s) > 2 else ", ".join(map(str, s))
-
-
-def _stops_text(stops: list[dict]) -> list[str]:
-    """'seeds 0, 2: health.energy_stop' per rule of a setting's health stops."""
-    rules: dict[str, list[int]] = {}
-    for h in stops:
-        rules.setdefault(h["rule"], []).append(h["seed"])
-    return [f"seed{'s' if len(v) > 1 else ''} {', '.join(map(str, v))}: {r}" for r, v in rules.items()]
 
 
 def render(doc: dict) -> str:
