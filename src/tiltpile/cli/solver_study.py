@@ -67,6 +67,12 @@ def add_parser(sub) -> None:
     p.add_argument("--null", type=int, default=0, metavar="K",
                    help="also count the figure numbers chance moves: K exchanges of each seed's two "
                         "runs per setting (tiltpile same-piles --null; default 0: none)")
+    add_stage_options(p)
+    p.set_defaults(func=run, interrupted=INTERRUPTED)
+
+
+def add_stage_options(p) -> None:
+    """The options of a settings study's stages (solver-study, stiffness-study)."""
     p.add_argument("--runs-only", action="store_true", help="only the ensembles")
     p.add_argument("--no-runs", action="store_true",
                    help="run no ensemble: the records and the study of the runs finished so far "
@@ -75,14 +81,14 @@ def add_parser(sub) -> None:
                    help="run nothing: write the records of every finished run (and each setting's "
                         "runs.json), to commit them while the rest runs")
     p.add_argument("--quiet", action="store_true", help="no progress bars")
-    p.set_defaults(func=run, interrupted=INTERRUPTED)
 
 
 # ----------------------------------------------------------------------------------------------
 # validation
 
 
-def _only(text: str | None) -> list[str] | None:
+def only(text: str | None) -> list[str] | None:
+    """--only S1,S2,... as a list (None without it); an empty name refused in one line."""
     if text is None:
         return None
     names = [t.strip() for t in text.split(",")]
@@ -91,14 +97,9 @@ def _only(text: str | None) -> list[str] | None:
     return names
 
 
-def _validate(args):
-    """The plan (``studies.solver.plan``) and the directories, refused in one line before
-    anything runs."""
-    from tiltpile.cli.study import _check_dir, _check_records
-    from tiltpile.figures import same_piles as sp
-    from tiltpile.paths import check_output
-    from tiltpile.studies import solver
-
+def check_options(args) -> None:
+    """The options every settings study shares (--workers, --null, one of --runs-only,
+    --records-only, --no-runs), refused in one line."""
     if args.workers is not None and args.workers < 1:
         raise ConfigError(f"--workers must be at least 1, got {args.workers}")
     if args.null < 0:
@@ -107,7 +108,18 @@ def _validate(args):
                             ("--no-runs", args.no_runs)) if v]
     if len(given) > 1:
         raise ConfigError(f"{' and '.join(given)}: give one of them")
-    the_plan = solver.plan(args.preset, args.overrides, _only(args.only), args.runs)
+
+
+def check_study(args, the_plan, override_of) -> None:
+    """What every settings study checks of its plan before anything runs, each in one line: the
+    null needs a jackknife, --data and --figures, the notebooks when it analyses, every
+    setting's ensemble directory and records (``override_of(planned)``: the override its
+    records were written with, for :func:`tiltpile.cli.study._check_records`)."""
+    from tiltpile.cli.ensemble import recorded_seeds
+    from tiltpile.cli.study import _check_dir, _check_records
+    from tiltpile.figures import same_piles as sp
+    from tiltpile.paths import check_output
+
     if args.null and args.runs < sp.JACKKNIFE_SEEDS:
         raise ConfigError(f"--null {args.null}: on {args.runs} runs no figure number has an error "
                           f"to move by; chance's count needs --runs {sp.JACKKNIFE_SEEDS} or more")
@@ -120,14 +132,22 @@ def _validate(args):
         if missing:
             raise ConfigError(f"notebooks/{missing[0]}.ipynb not found: run from the checkout's "
                               "root (the figures' numbers are their notebooks')")
-    from tiltpile.cli.ensemble import recorded_seeds
-
     for p in the_plan.entries:
         rec = args.figures / "records" / p.setting.name
         _check_dir(args.data / p.setting.name, p.config)
-        _check_records(rec, args, p.setting.override, p.config)
+        _check_records(rec, args, override_of(p), p.config)
         if rec.is_dir():
             recorded_seeds(rec, p.config.hash())      # a damaged record: refused now, in one line
+
+
+def _validate(args):
+    """The plan (``studies.solver.plan``) and the directories, refused in one line before
+    anything runs."""
+    from tiltpile.studies import solver
+
+    check_options(args)
+    the_plan = solver.plan(args.preset, args.overrides, only(args.only), args.runs)
+    check_study(args, the_plan, lambda p: p.setting.override)
     return the_plan
 
 

@@ -84,28 +84,14 @@ def add_parser(sub) -> None:
     p.add_argument("--null", type=int, default=0, metavar="K",
                    help="also count the figure numbers chance moves against k_n: K exchanges of "
                         "each seed's two runs per setting (tiltpile same-piles --null; default 0)")
-    p.add_argument("--runs-only", action="store_true", help="only the ensembles")
-    p.add_argument("--no-runs", action="store_true",
-                   help="run no ensemble: the records and the study of the runs finished so far "
-                        "(incomplete settings preliminary)")
-    p.add_argument("--records-only", action="store_true",
-                   help="run nothing: write the records of every finished run (and each setting's "
-                        "runs.json), to commit them while the rest runs")
-    p.add_argument("--quiet", action="store_true", help="no progress bars")
+    from tiltpile.cli.solver_study import add_stage_options
+
+    add_stage_options(p)
     p.set_defaults(func=run, interrupted=INTERRUPTED)
 
 
 # ----------------------------------------------------------------------------------------------
 # validation
-
-
-def _only(text: str | None) -> list[str] | None:
-    if text is None:
-        return None
-    names = [t.strip() for t in text.split(",")]
-    if not all(names):
-        raise ConfigError(f"--only {text!r}: an empty name; give S1,S2,... without blanks")
-    return names
 
 
 def _check_foreign(d: Path, what: str, config_hash: str, describe: str) -> None:
@@ -126,40 +112,14 @@ def _check_foreign(d: Path, what: str, config_hash: str, describe: str) -> None:
 def _validate(args):
     """The plan (``studies.stiffness.plan``), the directories and LAMMPS, refused in one line
     before anything runs."""
-    from tiltpile.cli.ensemble import recorded_seeds
-    from tiltpile.cli.study import _check_dir, _check_records
-    from tiltpile.figures import same_piles as sp
-    from tiltpile.paths import check_output
     from tiltpile.record import RecordError, read_meta, record_files
     from tiltpile.studies import stiffness
 
-    if args.workers is not None and args.workers < 1:
-        raise ConfigError(f"--workers must be at least 1, got {args.workers}")
-    if args.null < 0:
-        raise ConfigError(f"--null must be 0 or more, got {args.null}")
-    given = [o for o, v in (("--runs-only", args.runs_only), ("--records-only", args.records_only),
-                            ("--no-runs", args.no_runs)) if v]
-    if len(given) > 1:
-        raise ConfigError(f"{' and '.join(given)}: give one of them")
-    the_plan = stiffness.plan(args.preset, args.overrides, _only(args.only), args.runs)
-    if args.null and args.runs < sp.JACKKNIFE_SEEDS:
-        raise ConfigError(f"--null {args.null}: on {args.runs} runs no figure number has an error "
-                          f"to move by; chance's count needs --runs {sp.JACKKNIFE_SEEDS} or more")
-    check_output(args.data, "--data", directory=True)
-    check_output(args.figures, "--figures", directory=True)
-    if args.data.resolve() == args.figures.resolve():
-        raise ConfigError("--data and --figures are the same directory")
-    if not (args.runs_only or args.records_only):
-        missing = [s for s in sp.FIGURES if not (Path("notebooks") / f"{s}.ipynb").is_file()]
-        if missing:
-            raise ConfigError(f"notebooks/{missing[0]}.ipynb not found: run from the checkout's "
-                              "root (the figures' numbers are their notebooks')")
-    for p in the_plan.entries:
-        rec = args.figures / "records" / p.setting.name
-        _check_dir(args.data / p.setting.name, p.config)
-        _check_records(rec, args, None, p.config)
-        if rec.is_dir():
-            recorded_seeds(rec, p.config.hash())      # a damaged record: refused now, in one line
+    from tiltpile.cli.solver_study import check_options, check_study, only
+
+    check_options(args)
+    the_plan = stiffness.plan(args.preset, args.overrides, only(args.only), args.runs)
+    check_study(args, the_plan, lambda p: None)
     ref = the_plan.reference.config
     if args.reference_records is not None:
         if not args.reference_records.is_dir():

@@ -600,6 +600,28 @@ def in_fresh_process(fn, *args, workers: int = 1, **kw):
 # the words of a report section
 
 
+def write_outputs(name: str, plot, render, numbers: dict, meta: dict, figures_dir) -> dict[str, Path]:
+    """``figures_dir/<name>.{png,pdf,json}`` of a study's figure (``plot(numbers)``, saved by
+    :func:`tiltpile.figures.style.save`: the JSON is {figure, **meta, numbers}) and
+    ``<name>.md``, its report section (``render`` of that JSON); each written whole or not at all."""
+    import matplotlib.pyplot as plt
+
+    from tiltpile.figures import style
+    from tiltpile.outputs import replaced_whole
+
+    style.use()
+    fig = plot(numbers)
+    try:
+        paths = style.save(fig, name, numbers, figures_dir, meta)
+    finally:
+        plt.close(fig)
+    md = Path(figures_dir) / f"{name}.md"
+    with replaced_whole(md) as tmp:
+        tmp.write_text(render(json.loads(paths["json"].read_text())))
+    paths["md"] = md
+    return paths
+
+
 def fmt(x, spec: str) -> str:
     v = num(x)
     return "n/a" if not math.isfinite(v) else format(v, spec)

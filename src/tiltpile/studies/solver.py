@@ -40,7 +40,6 @@ The command is ``tiltpile solver-study`` (:mod:`tiltpile.cli.solver_study`).
 
 from __future__ import annotations
 
-import json
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -378,22 +377,9 @@ def plot(numbers: dict):
 def write(numbers: dict, meta: dict, figures_dir) -> dict[str, Path]:
     """``figures_dir/solver_study.{png,pdf,json}`` (:func:`tiltpile.figures.style.save`: the JSON
     is {figure, **meta, numbers}) and ``solver_study.md`` (:func:`render` of that JSON)."""
-    import matplotlib.pyplot as plt
+    from .settings import write_outputs
 
-    from tiltpile.figures import style
-    from tiltpile.outputs import replaced_whole
-
-    style.use()
-    fig = plot(numbers)
-    try:
-        paths = style.save(fig, NAME, numbers, figures_dir, meta)
-    finally:
-        plt.close(fig)
-    md = Path(figures_dir) / f"{NAME}.md"
-    with replaced_whole(md) as tmp:
-        tmp.write_text(render(json.loads(paths["json"].read_text())))
-    paths["md"] = md
-    return paths
+    return write_outputs(NAME, plot, render, numbers, meta, figures_dir)
 
 
 # ----------------------------------------------------------------------------------------------

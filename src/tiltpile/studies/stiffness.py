@@ -782,22 +782,9 @@ def plot(numbers: dict):
 def write(numbers: dict, meta: dict, figures_dir) -> dict[str, Path]:
     """``figures_dir/stiffness_study.{png,pdf,json}`` (:func:`tiltpile.figures.style.save`: the
     JSON is {figure, **meta, numbers}) and ``stiffness_study.md`` (:func:`render` of that JSON)."""
-    import matplotlib.pyplot as plt
+    from .settings import write_outputs
 
-    from tiltpile.figures import style
-    from tiltpile.outputs import replaced_whole
-
-    style.use()
-    fig = plot(numbers)
-    try:
-        paths = style.save(fig, NAME, numbers, figures_dir, meta)
-    finally:
-        plt.close(fig)
-    md = Path(figures_dir) / f"{NAME}.md"
-    with replaced_whole(md) as tmp:
-        tmp.write_text(render(json.loads(paths["json"].read_text())))
-    paths["md"] = md
-    return paths
+    return write_outputs(NAME, plot, render, numbers, meta, figures_dir)
 
 
 # ----------------------------------------------------------------------------------------------
