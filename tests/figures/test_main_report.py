@@ -105,17 +105,26 @@ def test_report_on_one_scale_needs_its_out(tmp_path):
     assert "--out" in r.stderr
 
 
-def test_the_solver_studys_section_is_included_once_written(tmp_path):
+def test_the_solver_studys_section_is_its_json_in_brief_once_written(tmp_path):
     root = tmp_path / "figures"
     shutil.copytree(ROOT / "figures" / "paper", root / "paper",
                     ignore=shutil.ignore_patterns("records", "*.png", "*.md"))
     assert "Not yet computed: `make solver-study`" in rm.render(root)
-    (root / rm.SOLVER_SECTION).parent.mkdir(parents=True)
-    (root / rm.SOLVER_SECTION).write_text("\n## What the solver's choice changes\n\nsection body\n")
+    (root / rm.SOLVER_STUDY).parent.mkdir(parents=True)
+    committed = json.loads((ROOT / "figures" / rm.SOLVER_STUDY).read_text())
+    (root / rm.SOLVER_STUDY).write_text(json.dumps(committed))
     text = rm.render(root)
-    assert "section body" in text and "Not yet computed" not in text
+    assert "Not yet computed: `make solver-study`" not in text
     assert text.count("## What the solver's choice changes") == 1
-
+    n = committed["numbers"]
+    shown = [st for st in n["settings"] if not st["committed"] and (st["seeds_done"] or st["health_stops"])]
+    for st in shown:
+        row = next(x for x in text.splitlines() if x.startswith(f"| `{st['name']}`"))
+        cells = [c.strip() for c in row.strip("|").split("|")]
+        assert cells[1].startswith(f"{len(st['seeds_done'])} of {st['seeds_planned']}")
+        if st.get("comparison"):
+            assert cells[3] == f"{st['comparison']['n_moved']} of {st['comparison']['n_with_error']}"
+            assert cells[4] == str(len(st["flipped"]))
 
 def test_the_same_piles_decision_says_what_the_null_can_say():
     """p below 0.05 moves, above it detects no difference, within two Monte-Carlo errors of it is

@@ -35,9 +35,9 @@ SCALES = ("default-fresh", "default", "paper-fresh", "paper", "paper-fast", "pap
 #: a verdict's rank when the best and the worst over the contact definitions are picked
 _RANK = {AGREES: 0, INCONCLUSIVE: 1, DISAGREES: 2}
 TEMPLATE = "main.md.j2"
-#: the solver study's report section, as `tiltpile solver-study` writes it (tiltpile.studies.solver
-#: renders it from its JSON; the report, a layer below, includes the text)
-SOLVER_SECTION = Path("solver-study") / "solver_study.md"
+#: the solver study's JSON, as `tiltpile solver-study` writes it (its full section, solver_study.md
+#: beside it, is linked; the main report gives it in brief)
+SOLVER_STUDY = Path("solver-study") / "solver_study.json"
 #: the stiffness study's section, as `tiltpile stiffness-study` writes it (likewise)
 STIFFNESS_SECTION = Path("stiffness-study") / "stiffness_study.md"
 
@@ -182,6 +182,35 @@ def _rates(root, claims) -> list[dict]:
     return out
 
 
+def _solver(path: Path) -> dict | None:
+    """The solver study in brief, from its JSON: per setting its name, status, piles done of
+    planned, core-hours per run, numbers moved of those with an error, claims flipped and the
+    relative shift of <n_m> in the quiet frames (pile against pile); the settings still to run."""
+    import json
+
+    if not path.is_file():
+        return None
+    n = json.loads(path.read_text())["numbers"]
+    rows, pending = [], []
+    for st in n["settings"]:
+        if st["committed"]:
+            continue
+        if not st["seeds_done"] and not st["health_stops"]:
+            pending.append(st["name"])
+            continue
+        cmp_ = st.get("comparison") or {}
+        nm = (st.get("pile_against_pile") or {}).get("n_m_quiet") or {}
+        rows.append({"name": st["name"], "status": st["status"], "done": len(st["seeds_done"]),
+                     "planned": st["seeds_planned"], "stops": len(st["health_stops"]),
+                     "hours": (st.get("cost") or {}).get("core_hours_per_run"),
+                     "moved": cmp_.get("n_moved"), "with_error": cmp_.get("n_with_error"),
+                     "flipped": st.get("flipped") or [],
+                     "n_m": _num(nm.get("relative")), "compared": len(st.get("seeds_compared") or [])})
+    ref = next(st for st in n["settings"] if st["committed"])
+    return {"rows": rows, "pending": pending, "ref_hours": (ref.get("cost") or {}).get("core_hours_per_run"),
+            "runs": n["runs"]}
+
+
 def _scale_table(root, claims) -> list[dict]:
     """Per scale of ``SCALES`` with figures: its piles, a few headline numbers of Fig. 2 and its
     claims' verdict counts."""
@@ -231,7 +260,6 @@ def context(root="figures", claims: list[Claim] | None = None) -> dict:
                      "dem_small": [e["other"].get(c.key, MISSING) for e in small_dem]})
     counts = {v: sum(1 for r in rows if r["verdict"] == v and not r["beyond"])
               for v in (AGREES, DISAGREES, INCONCLUSIVE)}
-    solver = Path(root) / SOLVER_SECTION
     friction = _friction.load(scale_dirs(root)[SMALL])
     mc = friction["numbers"].get("mohr_coulomb") if friction else None
     return {"paper_doc": paper_doc, "rows": rows, "counts": counts,
@@ -240,7 +268,7 @@ def context(root="figures", claims: list[Claim] | None = None) -> dict:
             "engines": engines, "big_dem": big_dem, "small_dem": small_dem,
             "rates": _rates(root, claims),
             "friction": {"answer": _friction.answer(mc)} if friction else None,
-            "solver": solver.read_text().strip("\n") if solver.is_file() else None,
+            "solver": _solver(Path(root) / SOLVER_STUDY),
             "stiffness": (stiff.read_text().strip("\n") if (stiff := Path(root) / STIFFNESS_SECTION).is_file()
                           else None),
             "verdicts": (AGREES, DISAGREES, INCONCLUSIVE, MISSING)}
