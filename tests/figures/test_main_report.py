@@ -157,3 +157,9 @@ def test_the_committed_paper_5x_check_is_exact():
     x = next(r for r in ctx["rates"] if r["faster"] == "paper-5x")
     assert x["null"]["method"] == "exact" and x["null"]["flips"] == 2 ** (x["seeds"] - 1)
     assert x["decision"] == ("no difference detected" if x["null"]["p_value"] >= hr.ALPHA else "moved")
+
+
+def test_the_committed_studies_document_is_what_the_committed_json_gives():
+    from tiltpile.report.document import render_studies
+
+    assert (ROOT / "paper" / "STUDIES.md").read_text() == render_studies(ROOT / "figures")
