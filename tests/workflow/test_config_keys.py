@@ -9,7 +9,6 @@ from __future__ import annotations
 import dataclasses
 import re
 import subprocess
-import tomllib
 from pathlib import Path
 
 import pytest
@@ -208,9 +207,6 @@ def test_the_kernel_filter_drops_the_shutdown_interrupt_line_alone():
 def test_papermills_shutdown_interrupt_leaves_no_error_line(tmp_path):
     """The race made certain: the kernel's last kernel_info handler still runs when papermill's
     shutdown interrupts it, which the stock kernel logs as an ERROR line."""
-    import json
-    import sys
-
     from jupyter_client.kernelspec import KernelSpecManager, NoSuchKernel
 
     try:
@@ -228,15 +224,8 @@ def test_papermills_shutdown_interrupt_leaves_no_error_line(tmp_path):
             "        await r\n"
             "    time.sleep(1.0)\n"
             "k.shell_handlers['kernel_info_request'] = slow\n")
-    nb = {"cells": [{"cell_type": "code", "execution_count": None, "id": "c0", "metadata": {},
-                     "outputs": [], "source": code}],
-          "metadata": {"kernelspec": {"name": "tiltpile", "display_name": "tiltpile",
-                                      "language": "python"}},
-          "nbformat": 4, "nbformat_minor": 5}
-    src, out = tmp_path / "in.ipynb", tmp_path / "out.ipynb"
-    src.write_text(json.dumps(nb))
-    done = subprocess.run([sys.executable, "-m", "papermill", "--kernel", "tiltpile",
-                           "--no-progress-bar", str(src), str(out)],
-                          capture_output=True, text=True, timeout=300)
+    from makehelpers import papermill_one_cell
+
+    done, _ = papermill_one_cell(tmp_path, code)
     assert done.returncode == 0, done.stderr
     assert "IPKernelApp" not in done.stderr, done.stderr
