@@ -29,7 +29,7 @@ float64 columns whose values are all float32 numbers as float32 (the cluster tab
 (``meta["columns"]``); every other column as it is. A record's tables are those the writer gave, bit for bit.
 
 ``meta`` (JSON): format, format_version, tiltpile_version (of the writer), column_code
-({table: {column: digest}}: the code that computed each column held,
+({table: {column: code}}: the version of the computation of each column held,
 ``tiltpile.analysis.tables.column_code``; records written before it hold instead analysis_code,
 one digest of the whole table code, read through ``tiltpile.analysis.legacy_codes``) and
 analysis_params (of the tables), seed, config (dict), config_hash, n_grains, n_frames,

@@ -1,5 +1,5 @@
-"""The tables' declarations, their producers and the digest of each column's code
-(tiltpile.analysis.tables, tiltpile.analysis.digest, tiltpile.analysis.legacy_codes)."""
+"""The tables' declarations, their producers and each column's code (tiltpile.analysis.tables,
+tiltpile.analysis.legacy_codes)."""
 
 import json
 import os
@@ -16,7 +16,7 @@ from tiltpile.analysis import legacy_codes, tables
 from tiltpile.analysis.ensemble_data import record_columns
 from tiltpile.record import read_meta, record_files
 
-from codehelpers import add_column, edit
+from codehelpers import add_column, edit, refactor
 
 SRC = Path(tables.__file__).resolve().parents[2]
 ROOT = SRC.parent
@@ -43,17 +43,23 @@ def _changed(a: dict, b: dict) -> set:
     return {f"{t}.{c}" for t in a for c in a[t] if b[t].get(c) != a[t][c]}
 
 
-def test_the_digests_are_the_code_of_each_column(tmp_path):
+def test_the_codes_are_the_versions_of_each_column(tmp_path):
     codes = tables.column_code()
     assert _codes(tmp_path / "copy") == codes
     assert all(len(d) == 16 for t in codes.values() for d in t.values())
     assert list(codes["frames"]) == tables.FRAME_COLUMNS
     assert list(codes["clusters"]) == tables.CLUSTER_COLUMNS
-    # one producer, one digest: z and n_m share theirs, the kinetic energy has its own
+    # one producer, one code: z and n_m share theirs; the kinetic energy reads no producer
     assert codes["frames"]["z"] == codes["frames"]["n_m"] != codes["frames"]["ke_trans"]
+    # the onset is the segmentation's, which reads the lost fraction
+    onset = tables.producer_code("frames.onset")
+    assert onset == tables.producer_code("segments") != tables.producer_code("frames.lost_fraction")
 
 
-def test_documentation_unrelated_code_and_a_new_column_keep_the_digests(tmp_path):
+def test_documentation_code_edits_a_refactor_and_a_new_column_keep_the_codes(tmp_path):
+    """What keeps every code: docstrings, comments, new code, a producer moved to another module
+    with its helpers renamed, a new column, and any edit of the code (whether it keeps the values
+    is the golden values' test, tests/analysis/test_golden_columns.py)."""
     before = tables.column_code()
     after = _codes(tmp_path,
                    ("analysis/contacts.py", '"""Active contacts: normal force f_n > 0.',
@@ -62,55 +68,41 @@ def test_documentation_unrelated_code_and_a_new_column_keep_the_digests(tmp_path
                     "# a new comment\nfrom .contacts import contact_counts, dz_local  # and another"),
                    ("analysis/tables.py", '"""The observables\' tables:', '"""The tables (edited):'),
                    ("analysis/tables.py", '"bulk grains (rattlers removed)"', '"bulk grains (edited)"'),
-                   ("analysis/structure.py", "from __future__ import annotations",
-                    "from __future__ import annotations\n_X = 2"),
-                   ("analysis/avalanche.py", "def onset_robustness(", "def _unused():\n"
-                    "    return 1\n\n\ndef onset_robustness("),
-                   add_column)
+                   ("analysis/avalanche.py", "MIN_LOST_CONTACTS = 3.0", "MIN_LOST_CONTACTS = 4.0"),
+                   refactor, add_column)
     assert _changed(before, after) == set()
-    assert after["frames"]["n_wall_contacts"] not in before["frames"].values()
+    assert "n_wall_contacts" in after["frames"]
 
 
 @pytest.mark.parametrize("change, changed, kept", [
-    # the active-contact rule: every count, what follows from the lost fraction, the clusters
-    (("analysis/contacts.py", "return force[:, 0] > 0.0", "return force[:, 0] >= 0.0"),
+    # the active-contact rule's version: every count, what follows from the lost fraction, the
+    # clusters
+    (("analysis/tables.py", '@_produces("frame", gives=("contacts",),',
+      '@_produces("frame", gives=("contacts",), version=2,'),
      {"frames.z", "frames.n_active", "frames.lost_fraction", "frames.onset", "frames.theta_m",
       "frames.rigid_fraction", "clusters.size", "clusters.avalanching"},
      {"frames.ke_trans", "frames.step", "frames.theta_deg", "clusters.run"}),
-    # the segmentation: onsets and what is measured from them, not the counts
-    (("analysis/avalanche.py", "MIN_LOST_CONTACTS = 3.0", "MIN_LOST_CONTACTS = 4.0"),
-     {"frames.avalanching", "frames.onset", "frames.theta_m", "frames.theta_to_onset",
-      "frames.mean_displacement", "clusters.avalanching", "clusters.theta_to_onset"},
-     {"frames.lost_fraction", "frames.z", "clusters.size", "clusters.theta_deg"}),
-    # the rigidity count: its four columns only
-    (("analysis/rigidity.py", "largest = int(np.argmax(cluster_size))",
-      "largest = int(np.argmax(cluster_size + 0))"),
-     {"frames.rigid_fraction", "frames.floppy_per_grain", "frames.rigid_spanning",
-      "frames.n_rigid_left_out"},
-     {"frames.z", "frames.lost_fraction", "frames.theta_m", "clusters.size"}),
-    # the engine: every column
-    (("analysis/tables.py", "clusters = clusters[CLUSTER_COLUMNS].astype(_CLUSTER_DTYPES)",
-      "clusters = clusters[CLUSTER_COLUMNS].astype(_CLUSTER_DTYPES).copy()"),
+    # the lost contacts' version: what follows from them, not the counts
+    (("analysis/tables.py", '           fill={"frames.n_lost": -1,',
+      '           version=2, fill={"frames.n_lost": -1,'),
+     {"frames.n_lost", "frames.lost_fraction", "frames.avalanching", "frames.onset",
+      "frames.theta_m", "frames.theta_to_onset", "frames.mean_displacement",
+      "clusters.avalanching", "clusters.theta_to_onset"},
+     {"frames.z", "frames.rigid_fraction", "clusters.size", "clusters.theta_deg"}),
+    # the engine's version: every column
+    (("analysis/tables.py", "ENGINE_VERSION = 1", "ENGINE_VERSION = 2"),
      {f"frames.{c}" for c in tables.FRAME_COLUMNS} | {f"clusters.{c}" for c in tables.CLUSTER_COLUMNS},
      set()),
-    # a parameter's default or check: no digest (caches and records compare the parameters)
-    (("analysis/tables.py", '"min_contacts": 2,', '"min_contacts": 3,'), set(),
-     {f"frames.{c}" for c in tables.FRAME_COLUMNS} | {f"clusters.{c}" for c in tables.CLUSTER_COLUMNS}),
 ])
-def test_code_edits_change_the_digests_of_the_columns_they_reach(tmp_path, change, changed, kept):
+def test_a_version_bump_changes_the_codes_of_the_columns_it_reaches(tmp_path, change, changed, kept):
     diff = _changed(tables.column_code(), _codes(tmp_path, change))
     assert changed <= diff and not kept & diff
 
 
-def test_the_segmentation_digest_changes_only_where_the_code_is_reached():
-    """The rigidity count reaches no segmentation code, the onset reaches the lost fraction."""
-    from tiltpile.analysis.digest import closure
-    rig = closure(tables._rigidity, tables._LAYOUT)
-    assert not any(k.startswith("tiltpile.analysis.avalanche") for k in rig)
-    assert "tiltpile.analysis.rigidity:rigid_clusters" in rig
-    assert "tiltpile.analysis.tables:_failure" not in closure(tables._avalanches, tables._LAYOUT)
-    onset = tables.producer_code("frames.onset")
-    assert onset == tables.producer_code("segments") != tables.producer_code("frames.lost_fraction")
+def test_a_version_is_an_integer_of_at_least_one():
+    for bad in (0, -1, 1.5, True, "2"):
+        with pytest.raises(ValueError, match="version must be an integer >= 1"):
+            tables._produces("frame", gives=("x",), version=bad)
 
 
 def test_a_producer_reads_only_what_it_declares():
@@ -121,7 +113,7 @@ def test_a_producer_reads_only_what_it_declares():
 
 def test_a_producer_cannot_change_what_another_gave():
     """What producers give (and the stages' inputs) reach later producers as read-only views,
-    leaving the originals writable: no producer changes a value another one's digest covers."""
+    leaving the originals writable: no producer changes a value another one's version covers."""
     a = np.zeros(3)
     given = tables._given(tables._GIVER["bulk"], {k: {"z_i": a} if k == "bulk" else 0
                                                    for k in tables._GIVER["bulk"].gives})

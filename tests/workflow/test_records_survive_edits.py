@@ -1,7 +1,8 @@
-"""The committed paper records survive analysis edits (issue 54): in a scratch copy of the
-repository, adding a column to the tables and editing a docstring leaves Fig. 2 rebuilt bit for
-bit from the committed records by `make`; editing the code of a column Fig. 2 reads makes `make`
-refuse Fig. 2 in one line naming the column.
+"""The committed paper records survive analysis refactors (issues 54, 71): in a scratch copy of
+the repository, moving a producer to another module, renaming its helpers, adding a column to the
+tables and editing a docstring leave Fig. 2 rebuilt bit for bit from the committed records by
+`make`; bumping the version of a column Fig. 2 reads makes `make` refuse Fig. 2 in one line
+naming the column.
 
 What it runs, to stay cheap: the Fig. 2 target of `make` (PRESET=paper, from the 50 records of
 figures/paper/records), twice, in a copy of the files that target reads (Makefile, src/,
@@ -19,7 +20,7 @@ import subprocess
 from pathlib import Path
 
 import pytest
-from codehelpers import add_column, edit
+from codehelpers import add_column, edit, refactor
 from makehelpers import MAKE_ENV
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -47,14 +48,15 @@ def _make(where: Path, numba_cache: Path) -> subprocess.CompletedProcess:
 
 
 @pytest.mark.slow
-def test_paper_records_survive_a_new_column_and_refuse_a_changed_one(tmp_path):
+def test_paper_records_survive_a_refactor_and_refuse_a_bumped_column(tmp_path):
     if not (ROOT / ".venv" / "bin" / "python").exists():
         pytest.skip("needs the checkout's .venv (make setup)")
     repo = tmp_path / "repo"
     repo.mkdir()
     _copy(repo)
     committed = (ROOT / FIG2).read_bytes()
-    # a new column and a docstring edit in code every column's digest follows
+    # a producer moved to another module, helpers renamed, a new column, a docstring edit
+    refactor(repo / "src")
     add_column(repo / "src")
     edit(repo / "src/tiltpile/analysis/contacts.py", '"""Active contacts: normal force f_n > 0.',
          '"""Active contacts: normal force f_n > 0 (an edited docstring).')
@@ -62,10 +64,9 @@ def test_paper_records_survive_a_new_column_and_refuse_a_changed_one(tmp_path):
     assert r.returncode == 0, r.stdout[-3000:] + r.stderr[-3000:]
     assert "papermill notebooks/fig2_avalanche_criterion.ipynb" in r.stdout   # rebuilt, not skipped
     assert (repo / FIG2).read_bytes() == committed
-    # the code of the lost fraction, which Fig. 2 reads, changes: refused, naming the column
-    edit(repo / "src/tiltpile/analysis/tables.py",
-         '"lost_fraction": lost.sum() / n_act if n_act else np.nan',
-         '"lost_fraction": float(lost.sum()) / n_act if n_act else np.nan')
+    # the lost contacts, which Fig. 2 reads, at a new version: refused, naming the column
+    edit(repo / "src/tiltpile/analysis/tables.py", '           fill={"frames.n_lost": -1,',
+         '           version=2, fill={"frames.n_lost": -1,')
     r = _make(repo, tmp_path / "numba")
     out = r.stdout + r.stderr
     assert r.returncode != 0

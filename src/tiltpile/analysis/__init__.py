@@ -12,11 +12,11 @@ Modules (imports point down; none reads HDF5 except through :mod:`tiltpile.store
 ``stats``         log-binned densities, P(s) maximum-likelihood fit, C(tau), failure enhancement,
                   delta z versus cluster size, thresholds, bootstrap intervals
 ``tables``        the per-frame and per-cluster columns, each declared once (``FRAME_DOCS``,
-                  ``CLUSTER_DOCS``) and computed by one registered producer, with the digest of
-                  its code (``column_code``); every analysis parameter (``DEFAULT_PARAMS``)
-``digest``        the digest of the code a function reaches (what ``column_code`` is made of)
+                  ``CLUSTER_DOCS``) and computed by one registered producer of a version,
+                  which gives each column its code (``column_code``); every analysis parameter
+                  (``DEFAULT_PARAMS``)
 ``legacy_codes``  the column codes of records written with one digest of the whole table code
-                  (``LEGACY``), and of edits that kept the values (``SUPERSEDED``)
+                  (``LEGACY``), and of changes of code that kept the values (``SUPERSEDED``)
 ``observables``   per-run tables (per frame, per cluster), cached beside the runs; per-run onsets
                   (first 2% onset, first large slide: ``run_table``)
 ``ensemble_data`` an ensemble directory (run files or their records) as tables, with the columns

@@ -16,18 +16,26 @@ column whose code has not changed since, without being rewritten:
     parameters, every column, dtype and value; tests/analysis/test_analysis_tables.py checks
     that the committed records hold exactly these columns).
 
-The table is data, written once: it never follows the code. A column whose code changes gets a
-new digest, which no entry here holds, and its legacy records stop serving it (the loader names
-it).
+The table is data, written once: it never follows the code. A column whose code changes (its
+producer's version bumped) gets a new code, which no entry here reaches, and its legacy records
+stop serving it (the loader names it).
 
-:data:`SUPERSEDED` carries records over an edit that changes a column's code and not its values:
-{old code: new code}, each entry shown by ``python -m tiltpile.bench.code_change OLD RUNS`` (the
-old commit's tables and the new one's on the same run files, every column, dtype and value, at
-the default parameters and others), written with the commit that made the edit and followed
-transitively (an old code superseded twice reaches the latest). A record's parameters are those
-its tables were computed at, a parameter it predates at its default
-(:func:`tiltpile.analysis.ensemble_data.load_records`), so an entry needs the values to agree
-there only.
+:data:`SUPERSEDED` carries records over a change of a column's code that kept its values:
+{old code: new code}, followed transitively (an old code superseded twice reaches the latest).
+Its entries are data, written once:
+
+- those of the digest era (until 2026-12-05 a column's code was a digest of the code its producer
+  reached, so that a refactor changing no value changed codes): each shown by
+  ``python -m tiltpile.bench.code_change OLD RUNS`` (the old commit's tables and the new one's on
+  the same run files, every column, dtype and value, at the default parameters and others);
+- the last digest of each producer, mapped to its versioned code (version 1 of every producer:
+  :func:`tiltpile.analysis.tables.producer_code`), computed by the commit that introduced the
+  versions from the same code (nothing else changed in that commit).
+
+Since the versions, a refactor changes no code and needs no entry here; a changed value bumps its
+producer's version, and records of the old version are refused (there is no entry to add: they
+hold other values). A record's parameters are those its tables were computed at, a parameter it
+predates at its default (:func:`tiltpile.analysis.ensemble_data.load_records`).
 """
 
 from __future__ import annotations
@@ -128,6 +136,26 @@ SUPERSEDED: dict[str, str] = {
     "f36d47004273c630": "85dbc828f0647881",
     "f4ff9e43f323642a": "52ee6e7b15f1c3e0",
     "f51fc27e55eb2ec7": "d383a0eb5301dcc3",
+    # the digests of the code of 605d1a5 (every record written since 8c18fdd holds them), to
+    # version 1 of each producer (module docstring): the same code computes both
+    "1cd00bc91c84e097": "866ddea72a25e780",
+    "3d425ab32762a813": "3a1dc324f535577c",
+    "5092e23071329f99": "0684b0bfd6feb371",
+    "52ee6e7b15f1c3e0": "3a1dc324f535577c",
+    "6fc5232d92908870": "efee82f0f4866ade",
+    "73fb9872a18c2807": "8a27a84b77d4ef6c",
+    "7630804d4594e1fa": "866ddea72a25e780",
+    "7e24288b96fd3bb7": "e21c6f2f4a0e3c19",
+    "85dbc828f0647881": "eea9a23ec49cd2a3",
+    "870c1882cd2e9931": "866ddea72a25e780",
+    "896c87f40b9aa770": "6cd9776062f66d9b",
+    "918461df078b25ec": "8a27a84b77d4ef6c",
+    "d383a0eb5301dcc3": "03f1d913d6c502fd",
+    "d5ff07d5f2e727a0": "8a27a84b77d4ef6c",
+    "dfeb375021bc6b8a": "c3ff12bc99c0c26b",
+    "f06031c175d9bbc1": "dc6b123ca478996c",
+    "f2d43c925168f634": "8a27a84b77d4ef6c",
+    "f3545a0e2331705d": "8a27a84b77d4ef6c",
 }
 
 

@@ -7,14 +7,14 @@ frame, and one row per critical cluster per frame.
 ``compute_observables(DIR)`` does this for every ``DIR/run_*.h5`` whose cache
 ``DIR/observables/run_*.npz`` (``DIR/observables/params-<digest>/run_*.npz`` at other analysis
 parameters than the defaults, so that each parameter set keeps its own) is missing or stale (run file size or mtime changed, other
-analysis parameters, or a column added or computed by other code: the per-column digests of
-:func:`tiltpile.analysis.tables.column_code`), in parallel processes, with a progress bar: where
+analysis parameters, or a column added or computed by another version of its producer: the
+per-column codes of :func:`tiltpile.analysis.tables.column_code`), in parallel processes, with a progress bar: where
 the run files exist, a new column is computed by the first load after it is declared. ``load_observables(DIR)`` returns the two tables for the
 whole ensemble.
 
 Cache format: one ``.npz`` per run (numpy only: no pyarrow / pytables here) holding each column
 as ``frames__<col>`` / ``clusters__<col>`` plus ``meta`` (JSON: source size, mtime, parameters,
-``columns``: the code digest of every column); written to a temporary name, synced and renamed
+``columns``: the code of every column); written to a temporary name, synced and renamed
 (:func:`tiltpile.outputs.replaced_whole`: a cache is replaced whole or not at all). One
 computation at a time per cache directory: ``compute_observables`` holds its
 ``.observables.lock`` (:func:`tiltpile.outputs.output_lock`) while it computes, and a second one
@@ -37,6 +37,7 @@ import pandas as pd
 from tiltpile.outputs import output_lock, replaced_whole
 
 from . import avalanche as _av
+from .legacy_codes import recorded_column_code
 from .tables import (CLUSTER_COLUMNS, CLUSTER_DOCS, DEFAULT_PARAMS, FRAME_COLUMNS,  # noqa: F401
                      FRAME_DOCS, RUN_TABLE_PARAMS, _params, failure_between, frame_contacts,
                      frame_observables, lost_between, run_observables, column_code)
@@ -87,7 +88,11 @@ def _read_meta(cache: Path) -> dict | None:
 
 def _is_fresh(run_path: Path, params: dict) -> bool:
     meta = _read_meta(_cache_path(run_path, params))
-    return meta is not None and meta == json.loads(json.dumps(_source_meta(run_path, params)))
+    if meta is None:
+        return False
+    if isinstance(meta.get("columns"), dict):    # codes a value-keeping change superseded
+        meta["columns"] = recorded_column_code({"column_code": meta["columns"]})
+    return meta == json.loads(json.dumps(_source_meta(run_path, params)))
 
 
 def _write_cache(cache: Path, meta: dict, frames: pd.DataFrame, clusters: pd.DataFrame) -> None:

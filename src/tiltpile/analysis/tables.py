@@ -17,21 +17,26 @@ inputs, or what earlier producers give: columns, or intermediates such as the fr
 ``contacts``) and may read nothing else; the engine (:func:`run_observables`,
 :func:`frame_observables`) runs them in order and names none of them.
 
-Each column's *code* (:func:`column_code`) is a digest of its producer's syntax tree and of every
-function, class and constant of this package it reaches (:mod:`tiltpile.analysis.digest`;
-docstrings and comments aside), of the engine, and of the codes of what it reads (``theta_m``
-reads the segmentation, which reads ``lost_fraction``, ...). The observables' caches and the run
-records hold each column's code: a column is stale when its code changed, and only then (a
-docstring, or an edit of code the column does not reach, keeps it). Parameter values are not in
-the codes: caches and records hold the parameters and compare them. Records written before the
-codes hold one digest of the whole table code, read through
-:mod:`tiltpile.analysis.legacy_codes`.
+Each column's *code* (:func:`column_code`) says which computation gave its values: a digest of
+its producer's *version* (``@_produces(..., version=N)``), of the engine's (:data:`ENGINE_VERSION`)
+and of the codes of what it reads (``theta_m`` reads the segmentation, which reads
+``lost_fraction``, ...), so that bumping one producer changes the code of every column computed
+from it. The observables' caches and the run records hold each column's code: a column is stale
+when its code changed, and only then. A refactor that changes no value (moving a producer,
+renaming its helpers, editing a docstring) changes no code and strands no record; an edit that
+changes a column's values must bump its producer's version, and the golden-values test
+(tests/analysis/test_golden_columns.py: every column, on a small committed run, at several
+analysis parameter sets) fails until it does, naming the columns whose values moved. Parameter
+values are not in the codes: caches and records hold the parameters and compare them. Records
+written before the versions hold digests of the code (and older ones one digest of the whole table
+code), read through :mod:`tiltpile.analysis.legacy_codes`.
 
 Adding an observable: its declaration in ``FRAME_DOCS`` or ``CLUSTER_DOCS``, its producer here
-(the code it needs may live in contacts.py, clusters.py, ...), and a test; then the figure that
+(the code it needs may live in contacts.py, clusters.py, ...), its golden values
+(``python tests/analysis/golden.py --update``) and a test; then the figure that
 reads it adds it to its ``READS`` (src/tiltpile/figures/figN.py) and a notebook or study uses it.
-Nothing else changes: every other column keeps its code, so the committed records keep serving
-the figures that do not read the new column, and the observables caches compute it where the run
+Nothing else changes: every other column keeps its code (its version), so the committed
+records keep serving the figures that do not read the new column, and the observables caches compute it where the run
 files exist (``make records`` then writes it into the records); a figure reading it from records
 that predate it is refused in one line naming it. No test or document lists every column: the
 registry itself is checked at import (every declared column given by exactly one producer, every
@@ -185,7 +190,8 @@ def _params(overrides: dict) -> dict:
 
 def _check_params(p: dict) -> None:
     """Raise (TypeError, ValueError, one line) for a parameter value out of its range. It only
-    raises, never changes ``p``: the columns' digests do not follow it (:data:`_LAYOUT`)."""
+    raises, never changes ``p``: what it admits is compared by the caches and records, not
+    carried in the columns' codes."""
     if p["link"] not in ("contacts", "mobilized"):
         raise ValueError(f"link must be 'contacts' or 'mobilized', got {p['link']!r}")
     if p["cluster_region"] not in ("mobile", "bulk"):
@@ -332,6 +338,7 @@ class Producer:
     gives: tuple
     reads: tuple
     fill: dict
+    version: int = 1
 
 
 _PRODUCERS: list[Producer] = []
@@ -342,10 +349,16 @@ RUN_INPUTS = ("run_id", "n_frames", "frame_index", "step", "time", "theta", "ite
               "residual", "cluster_frame", "params")
 
 
-def _produces(stage: str, gives, reads=(), fill=None):
-    """Register the decorated function as a :class:`Producer` (its digest: :func:`column_code`)."""
+def _produces(stage: str, gives, reads=(), fill=None, version: int = 1):
+    """Register the decorated function as a :class:`Producer`. ``version``: which computation
+    of its values it is (the columns' codes, :func:`column_code`); bump it with any edit that
+    changes a value it gives, never otherwise (module docstring)."""
+    if isinstance(version, bool) or not isinstance(version, int) or version < 1:
+        raise ValueError(f"version must be an integer >= 1, got {version!r}")
+
     def register(fn):
-        _PRODUCERS.append(Producer(stage, fn, tuple(gives), tuple(reads), dict(fill or {})))
+        _PRODUCERS.append(Producer(stage, fn, tuple(gives), tuple(reads), dict(fill or {}),
+                                   version))
         return fn
     return register
 
@@ -365,7 +378,7 @@ class _View:
 
 def _given(producer: Producer, out: dict) -> dict:
     """``out`` checked against what ``producer`` declares, its arrays as read-only views: a later
-    producer cannot change what an earlier one gave (its code is not in their digests)."""
+    producer cannot change what an earlier one gave (its version is not in their codes)."""
     if set(out) != set(producer.gives):
         raise RuntimeError(f"{producer.fn.__name__} gave {sorted(out)}, declared "
                            f"{sorted(producer.gives)}")
@@ -611,7 +624,7 @@ def _cluster_onset_state(q):
 
 
 # ----------------------------------------------------------------------------------------------
-# the engine: runs the producers in order (its own code is in every column's digest)
+# the engine: runs the producers in order (its version, ENGINE_VERSION, is in every column's code)
 
 _CLUSTER_DTYPES = {"run": np.int64, "frame": np.int64, "cluster": np.int64, "size": np.int64}
 
@@ -735,19 +748,12 @@ def run_observables(run, run_id: int | None = None, **params) -> tuple[pd.DataFr
 
 
 # ----------------------------------------------------------------------------------------------
-# the registry's consistency and the columns' digests
+# the registry's consistency and the columns' codes
 
-# not followed by the digests (digest.closure's skip): the declarations that decide which columns
-# exist and in what order, never a value; and the analysis parameters' values and checks, which
-# caches and records hold and compare themselves (``params``, ``analysis_params``), so that a
-# parameter added at a default that keeps the old computation strands nothing by itself (the
-# code that reads it is in the digests of the columns it reaches)
-_LAYOUT = frozenset(f"{__name__}:{n}" for n in ("FRAME_DOCS", "CLUSTER_DOCS", "FRAME_COLUMNS",
-                                                "CLUSTER_COLUMNS", "FLOAT32_CLUSTER_COLUMNS",
-                                                "_PRODUCERS", "DEFAULT_PARAMS", "_check_params"))
-# the engine: what runs every producer (in every column's digest)
-_ENGINE = (run_observables, frame_observables, _frame_stage, _frame_inputs, _split, _given, _View,
-           _params, _run_id, _open_run)
+#: the engine's version (run_observables, frame_observables and what they call to run the
+#: producers, dtypes included): in every column's code; bump it with an engine edit that changes
+#: any value
+ENGINE_VERSION = 1
 
 
 def _check_registry() -> dict:
@@ -789,18 +795,20 @@ def _check_registry() -> dict:
 _GIVER = _check_registry()
 
 
+def _digest(parts) -> str:
+    """16 hex digits of SHA-256 over the strings ``parts``."""
+    import hashlib
+    return hashlib.sha256("\0".join(parts).encode()).hexdigest()[:16]
+
+
 @functools.lru_cache(maxsize=None)
 def producer_code(name: str) -> str:
-    """Digest (16 hex digits) of what gives ``name`` (a column ``"frames.z"`` or an
-    intermediate): the engine, the producer's code and everything of the analysis package it
-    reaches (:func:`tiltpile.analysis.digest.closure`), and the digests of what it reads."""
-    from .digest import closure, digest
+    """The code (16 hex digits) of what gives ``name`` (a column ``"frames.z"`` or an
+    intermediate): a digest of the engine's version, its producer's version and the codes of
+    what it reads, names aside (renaming an intermediate or a helper keeps every code)."""
     pr = _GIVER[name]
-    engine: dict = {}
-    for unit in _ENGINE:
-        engine.update(closure(unit, _LAYOUT))
     reads = sorted(producer_code(r) for r in pr.reads if r in _GIVER)
-    return digest([engine, closure(pr.fn, _LAYOUT), *reads])
+    return _digest([f"engine {ENGINE_VERSION}", f"producer {pr.version}", *reads])
 
 
 @functools.lru_cache(maxsize=None)
@@ -810,7 +818,8 @@ def _column_code() -> tuple:
 
 
 def column_code() -> dict:
-    """{"frames": {column: digest}, "clusters": {column: digest}}: the code of every column of
-    the tables (:func:`producer_code`). A cache or record holding a column of another digest
-    holds it as other code computed it."""
+    """{"frames": {column: code}, "clusters": {column: code}}: the code of every column of the
+    tables (:func:`producer_code`). A cache or record holding a column of another code (followed
+    through :func:`tiltpile.analysis.legacy_codes.superseded`) holds it as another computation
+    gave it."""
     return {table: dict(cols) for table, cols in _column_code()}

@@ -9,7 +9,7 @@ A record holds, for one finished run:
   figures read: all but ``DROPPED_CLUSTER_COLUMNS`` (the clusters' position, gyration radii and
   long-axis angle in the box frame: read by no figure, study or report, and 60% of the bytes);
 * the run's configuration and hash, seed, cost, how it ended, its deposition, preparation and
-  health records, the writer's tiltpile version and the code digest of every column it holds
+  health records, the writer's tiltpile version and the code of every column it holds
   (``column_code``: :func:`tiltpile.analysis.tables.column_code`);
 * ``source``: the run file's name, size, attribute digest (``attrs_sha256``) and frames digest
   (``store.Run.frames_digest``), so that the record can be traced to its run file;
