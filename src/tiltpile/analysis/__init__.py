@@ -27,6 +27,9 @@ Modules (imports point down; none reads HDF5 except through :mod:`tiltpile.store
                   rattlers, bulk), for ``tiltpile zcount``
 ``mohr_coulomb``  the Mohr-Coulomb reading of the clusters' orientation and its test across a
                   friction study (``tiltpile study``)
+``checks``        the checks of the public functions' inputs: a wrong shape, length, index, NaN,
+                  radius, column or parameter is refused in one line naming the argument
+                  (``"contact_counts: pair must ..., got ..."``; ValueError or TypeError)
 
 Quick use::
 
@@ -114,4 +117,4 @@ from .stats import (
 )
 
 __all__ = [name for name in dir() if not name.startswith("_")
-           and name not in ("avalanche", "clusters", "contacts", "observables", "stats")]
+           and name not in ("avalanche", "checks", "clusters", "contacts", "observables", "stats")]

@@ -67,6 +67,7 @@ import pandas as pd
 
 import warnings
 
+from . import checks as _ck
 from .contacts import displacement
 
 MIN_LOST_CONTACTS = 3.0  # cutoff * contacts below this: the cutoff does not resolve avalanches
@@ -83,7 +84,12 @@ def criterion_resolution(n_contacts, cutoff: float = 0.02, min_lost: float = MIN
 
     n_contacts: active contacts per frame (array) or one number. Issues a ``ResolutionWarning``
     (if ``warn``) when the result is below ``min_lost``; NaN when no count is finite.
+    cutoff in (0, 1).
     """
+    fn = "criterion_resolution"
+    _ck.asarray(fn, "n_contacts", n_contacts)
+    _ck.real(fn, "cutoff", cutoff, lo=0, hi=1, lo_open=True, hi_open=True)
+    _ck.real(fn, "min_lost", min_lost, lo=0)
     c = np.asarray(n_contacts, dtype=float).ravel()
     c = c[np.isfinite(c)]
     if c.size == 0:
@@ -105,8 +111,11 @@ def frame_spacing_check(lost_fraction, cutoff: float = 0.02, limit: float = SPAC
 
     Issues a ``ResolutionWarning`` (if ``warn``) when it exceeds ``limit`` (1/2): the quiet frames
     then lose nearly the cutoff between two frames, i.e. frames are too far apart for the cutoff.
-    NaN values are ignored (NaN when none is finite).
+    NaN values are ignored (NaN when none is finite, or when the cutoff is not > 0).
     """
+    _ck.asarray("frame_spacing_check", "lost_fraction", lost_fraction)
+    _ck.real("frame_spacing_check", "cutoff", cutoff, nonfinite_ok=True)
+    _ck.real("frame_spacing_check", "limit", limit, nonfinite_ok=True)
     lf = np.asarray(lost_fraction, dtype=float).ravel()
     lf = lf[np.isfinite(lf)]
     if lf.size == 0 or cutoff <= 0:
@@ -124,6 +133,18 @@ def frame_spacing_check(lost_fraction, cutoff: float = 0.02, limit: float = SPAC
     return ratio
 
 
+def _lost_fractions(fn: str, lost_fraction) -> np.ndarray:
+    """Check a run's lost fractions: (F,) in [0, 1] or NaN (:mod:`tiltpile.analysis.checks`)."""
+    lf = _ck.shaped(fn, "lost_fraction", lost_fraction, ("F",))
+    if lf.size:
+        with np.errstate(invalid="ignore"):
+            out = (lf < 0) | (lf > 1)
+        if out.any():
+            k = int(np.flatnonzero(out)[0])
+            _ck.fail(fn, "lost_fraction", "be in [0, 1] or NaN", f"{lf[k]} at frame {k}")
+    return lf
+
+
 def segment_avalanches(lost_fraction: np.ndarray, cutoff: float = 0.02,
                        merge_gap: int = 0, n_contacts=None) -> dict:
     """Split a run into quiet and avalanching periods (module docstring).
@@ -138,6 +159,10 @@ def segment_avalanches(lost_fraction: np.ndarray, cutoff: float = 0.02,
     Returns dict of arrays: avalanching (F,) bool, onsets (K,) int64 frame indices,
     period (F,) int64 period id, period_start (F,) int64 first frame of each frame's period.
     """
+    fn = "segment_avalanches"
+    _lost_fractions(fn, lost_fraction)
+    _ck.real(fn, "cutoff", cutoff, lo=0, hi=1, lo_open=True, hi_open=True)
+    _ck.count(fn, "merge_gap", merge_gap, floats_ok=True)
     lf = np.asarray(lost_fraction, dtype=float)
     if n_contacts is not None:
         criterion_resolution(n_contacts, cutoff)
@@ -168,9 +193,19 @@ def segment_avalanches(lost_fraction: np.ndarray, cutoff: float = 0.02,
 def stretches(mask: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """Start (inclusive) and end (exclusive) indices of the maximal True stretches of a bool
     array, e.g. the avalanches of ``segment_avalanches(...)["avalanching"]``."""
+    _ck.boolean("stretches", "mask", mask, None)
     m = np.concatenate([[False], np.asarray(mask, dtype=bool), [False]])
     d = np.diff(m.astype(np.int8))
     return np.flatnonzero(d == 1), np.flatnonzero(d == -1)
+
+
+def _frame_indices(fn: str, name: str, x, f: int, sorted_: bool = False) -> None:
+    """Check frame indices: integers in [0, f), strictly increasing if ``sorted_``."""
+    a = _ck.shaped(fn, name, x, ("K",), kinds="iu", empty_ok=True)
+    if a.size and (a.min() < 0 or a.max() >= f):
+        _ck.fail(fn, name, f"hold frame indices in [0, {f})", f"[{a.min()}, {a.max()}]")
+    if sorted_ and a.size > 1 and not (np.diff(a) > 0).all():
+        _ck.fail(fn, name, "be increasing frame indices", _ck.short(a.tolist()))
 
 
 def theta_relative_to_onset(theta_deg: np.ndarray, avalanching: np.ndarray,
@@ -181,6 +216,10 @@ def theta_relative_to_onset(theta_deg: np.ndarray, avalanching: np.ndarray,
     Returns dict: onset_index (F,) int64 frame index of the reference onset (-1 if none),
     theta_m (F,), theta_to_onset (F,) = theta - theta_m (NaN where no reference onset).
     """
+    fn = "theta_relative_to_onset"
+    f = _ck.shaped(fn, "theta_deg", theta_deg, ("F",), finite=True).size
+    _ck.boolean(fn, "avalanching", avalanching, f, f"theta_deg (F={f})")
+    _frame_indices(fn, "onsets", onsets, f, sorted_=True)
     theta = np.asarray(theta_deg, dtype=float)
     av = np.asarray(avalanching, dtype=bool)
     onsets = np.asarray(onsets, dtype=np.int64)
@@ -208,6 +247,13 @@ def onset_robustness(lost_fraction: np.ndarray, theta_deg: np.ndarray,
     onset in the run, 0..K-1), ref_frame, cutoff, frame, shift_frames (frame - ref_frame),
     shift_deg (theta[frame] - theta[ref_frame]).
     """
+    fn = "onset_robustness"
+    _ck.same_length(fn, lost_fraction=_ck.asarray(fn, "lost_fraction", lost_fraction),
+                    theta_deg=_ck.asarray(fn, "theta_deg", theta_deg))
+    for c in _ck.shaped(fn, "cutoffs", cutoffs, ("K",)).tolist():
+        _ck.real(fn, "cutoffs", c, lo=0, hi=1, lo_open=True, hi_open=True)
+    _ck.real(fn, "reference", reference, lo=0, hi=1, lo_open=True, hi_open=True)
+    _ck.real(fn, "max_shift", max_shift, lo=0)
     theta = np.asarray(theta_deg, dtype=float)
     ref = segment_avalanches(lost_fraction, reference, merge_gap)["onsets"]
     rows = []
@@ -232,6 +278,8 @@ def onset_robustness_ensemble(frames: pd.DataFrame, cutoffs=(0.01, 0.02, 0.03, 0
                               merge_gap: int = 0) -> pd.DataFrame:
     """:func:`onset_robustness` for every run of a per-frame table (columns run, frame,
     theta_deg, lost_fraction); the result gains a ``run`` column."""
+    _ck.table("onset_robustness_ensemble", "frames", frames,
+              ("run", "frame", "theta_deg", "lost_fraction"))
     parts = []
     for run, g in frames.sort_values(["run", "frame"]).groupby("run", sort=False):
         r = onset_robustness(g["lost_fraction"].to_numpy(), g["theta_deg"].to_numpy(), cutoffs,
@@ -252,6 +300,13 @@ def displacement_since_period_start(positions: np.ndarray, period_start: np.ndar
     positions (F, N, 2) in d; period_start (F,) int; select (N,) bool grains to include
     (default all). Returns (mean (F,), max (F,)) in d.
     """
+    fn = "displacement_since_period_start"
+    p = _ck.shaped(fn, "positions", positions, ("F", "N", 2), finite=True)
+    _ck.shaped(fn, "period_start", period_start, (p.shape[0],), f"positions (F={p.shape[0]})",
+               kinds="iu")
+    _frame_indices(fn, "period_start", period_start, p.shape[0])
+    if select is not None:
+        _ck.boolean(fn, "select", select, p.shape[1], f"positions (N={p.shape[1]})")
     pos = np.asarray(positions, dtype=float)
     ps = np.asarray(period_start, dtype=np.int64)
     if select is not None:
@@ -272,6 +327,7 @@ def resegment(frames: pd.DataFrame, cutoff: float = 0.02, merge_gap: int = 0) ->
     (bool: frame is an onset), period, theta_m, theta_to_onset recomputed for ``cutoff``.
     (Displacement columns are not recomputed.)
     """
+    _ck.table("resegment", "frames", frames, ("run", "frame", "theta_deg", "lost_fraction"))
     out = frames.sort_values(["run", "frame"]).copy()
     parts = []
     for _, g in out.groupby("run", sort=False):
@@ -301,6 +357,10 @@ def first_slide(theta_deg, ke_per_grain, threshold: float, sustain_deg: float) -
     stretch, NaN when there is none (also with a non-finite threshold). A stretch still running
     at the last frame counts only if it already spans ``sustain_deg``.
     """
+    _ck.asarray("first_slide", "theta_deg", theta_deg)
+    _ck.asarray("first_slide", "ke_per_grain", ke_per_grain)
+    _ck.real("first_slide", "threshold", threshold, nonfinite_ok=True)
+    _ck.real("first_slide", "sustain_deg", sustain_deg, nonfinite_ok=True)
     theta = np.asarray(theta_deg, dtype=float).ravel()
     ke = np.asarray(ke_per_grain, dtype=float).ravel()
     if theta.shape != ke.shape:
@@ -327,6 +387,14 @@ def run_onsets(frames: pd.DataFrame, ke_threshold: float, sustain_deg: float,
     n_onsets, theta_first_onset (NaN: no onset), theta_first_slide (NaN: no sustained slide
     before theta_end), slide_minus_onset (deg), ke_max (largest energy per grain of the run).
     """
+    fn = "run_onsets"
+    if not isinstance(ke_column, str):
+        _ck.fail(fn, "ke_column", "be a column name", _ck.short(ke_column), TypeError)
+    _ck.table(fn, "frames", frames, ("run", "frame", "theta_deg", "onset", ke_column))
+    _ck.real(fn, "ke_threshold", ke_threshold, nonfinite_ok=True)
+    _ck.real(fn, "sustain_deg", sustain_deg, nonfinite_ok=True)
+    if not sustain_deg >= 0:
+        _ck.fail(fn, "sustain_deg", "be >= 0", repr(sustain_deg))
     rows = []
     for run, g in frames.sort_values(["run", "frame"], kind="stable").groupby("run", sort=True):
         th = g["theta_deg"].to_numpy(float)

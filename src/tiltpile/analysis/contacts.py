@@ -38,6 +38,8 @@ from __future__ import annotations
 import numpy as np
 from numba import njit
 
+from . import checks as _ck
+
 WALL_FLOOR = -1
 WALL_LEFT = -2
 WALL_RIGHT = -3
@@ -54,6 +56,12 @@ def active_mask(force: np.ndarray) -> np.ndarray:
 
     force : (C, 2) float [f_n, f_t].  Returns (C,) bool.
     """
+    _ck.shaped("active_mask", "force", force, ("C", 2), finite=True, empty_ok=True)
+    return _active_mask(force)
+
+
+def _active_mask(force):
+    """:func:`active_mask` without the checks (inputs the analysis built itself)."""
     force = np.asarray(force, dtype=float).reshape(-1, 2)
     return force[:, 0] > 0.0
 
@@ -70,6 +78,23 @@ def mobilized_mask(force: np.ndarray, status: np.ndarray | None = None, mu=0.5,
     mu : float or (C,) array (e.g. grain and wall friction per contact); eps : float in [0, 1).
     Returns (C,) bool.
     """
+    fn = "mobilized_mask"
+    _ck.shaped(fn, "force", force, ("C", 2), finite=True, empty_ok=True)
+    force = np.asarray(force, dtype=float).reshape(-1, 2)
+    c = len(force)
+    if status is not None:
+        _ck.statuses(fn, "status", status, c, f"force (C={c})")
+    if eps is not None:
+        _ck.real(fn, "eps", eps, lo=0, hi=1, hi_open=True)
+        if np.ndim(mu) == 0:
+            _ck.real(fn, "mu", mu, lo=0)
+        elif c and (_ck.shaped(fn, "mu", mu, (c,), f"force (C={c})", finite=True).min() < 0):
+            _ck.fail(fn, "mu", "be >= 0", str(np.min(mu)))
+    return _mobilized_mask(force, status, mu, eps)
+
+
+def _mobilized_mask(force, status=None, mu=0.5, eps=None):
+    """:func:`mobilized_mask` without the checks (inputs the analysis built itself)."""
     force = np.asarray(force, dtype=float).reshape(-1, 2)
     act = force[:, 0] > 0.0
     if eps is None:
@@ -88,6 +113,15 @@ def contact_counts(n: int, pair: np.ndarray, mask: np.ndarray) -> np.ndarray:
     contacts to count (e.g. active, or mobilized). A grain-grain contact counts for both grains,
     a wall contact for its grain only. Returns (n,) int64.
     """
+    fn = "contact_counts"
+    _ck.count(fn, "n", n)
+    c = _ck.contact_pairs(fn, "pair", pair, n, f"n = {n}")
+    _ck.boolean(fn, "mask", mask, c, f"pair (C={c})", empty_ok=True)
+    return _contact_counts(n, pair, mask)
+
+
+def _contact_counts(n, pair, mask):
+    """:func:`contact_counts` without the checks (inputs the analysis built itself)."""
     pair = np.asarray(pair).reshape(-1, 2)
     mask = np.asarray(mask, dtype=bool)
     i = pair[mask, 0]
@@ -103,6 +137,15 @@ def coordination(z_i: np.ndarray, m_i: np.ndarray, select: np.ndarray) -> tuple[
     z_i, m_i : (N,) per-grain active and mobilized contact numbers; select : (N,) bool.
     Returns (z, n_m, N_selected); z and n_m are NaN when no grain is selected.
     """
+    fn = "coordination"
+    n = _ck.shaped(fn, "z_i", z_i, ("N",), finite=True).shape[0]
+    _ck.shaped(fn, "m_i", m_i, (n,), f"z_i (N={n})", finite=True)
+    _ck.boolean(fn, "select", select, n, f"z_i (N={n})")
+    return _coordination(z_i, m_i, select)
+
+
+def _coordination(z_i, m_i, select):
+    """:func:`coordination` without the checks (inputs the analysis built itself)."""
     select = np.asarray(select, dtype=bool)
     n = int(select.sum())
     if n == 0:
@@ -113,18 +156,41 @@ def coordination(z_i: np.ndarray, m_i: np.ndarray, select: np.ndarray) -> tuple[
 def dz_gen(z, n_m, d: int = 2):
     """Distance to generalized isostaticity, paper Eq. (1): z - (d + 1) - 2 n_m / d.
 
-    In 2D: delta z_gen = z - 3 - n_m. Works on scalars or arrays.
+    In 2D: delta z_gen = z - 3 - n_m. Works on scalars or arrays (NaN gives NaN).
     """
+    _ck.numbers("dz_gen", z=z, n_m=n_m)
+    _ck.count("dz_gen", "d", d, lo=1, floats_ok=True)
+    return _dz_gen(z, n_m, d)
+
+
+def _dz_gen(z, n_m, d=2):
+    """:func:`dz_gen` without the checks (inputs the analysis built itself)."""
     return np.asarray(z) - (d + 1) - 2.0 * np.asarray(n_m) / d
 
 
 def dz_local(z, n_m, d: int = 2):
     """Cluster stability margin delta z = z - 2 n_m / d (paper, Fig. 5). In 2D: z - n_m."""
+    _ck.numbers("dz_local", z=z, n_m=n_m)
+    _ck.count("dz_local", "d", d, lo=1, floats_ok=True)
+    return _dz_local(z, n_m, d)
+
+
+def _dz_local(z, n_m, d=2):
+    """:func:`dz_local` without the checks (inputs the analysis built itself)."""
     return np.asarray(z) - 2.0 * np.asarray(n_m) / d
 
 
 def rattler_mask(z_i: np.ndarray, fixed: np.ndarray, min_contacts: int = 2) -> np.ndarray:
     """Rattlers: mobile grains with fewer than ``min_contacts`` active contacts. (N,) bool."""
+    fn = "rattler_mask"
+    n = _ck.shaped(fn, "z_i", z_i, ("N",), finite=True).shape[0]
+    _ck.boolean(fn, "fixed", fixed, n, f"z_i (N={n})")
+    _ck.real(fn, "min_contacts", min_contacts, lo=0)
+    return _rattler_mask(z_i, fixed, min_contacts)
+
+
+def _rattler_mask(z_i, fixed, min_contacts=2):
+    """:func:`rattler_mask` without the checks (inputs the analysis built itself)."""
     return (~np.asarray(fixed, dtype=bool)) & (np.asarray(z_i) < min_contacts)
 
 
@@ -147,6 +213,16 @@ def contact_gaps(pair: np.ndarray, position: np.ndarray, radius: np.ndarray,
     grain-grain: |x_i - x_j| - r_i - r_j; floor: y_i - r_i; left wall: x_i - r_i;
     right wall: L - x_i - r_i. pair (C, 2); position (N, 2); radius (N,). Returns (C,).
     """
+    fn = "contact_gaps"
+    n = _ck.radii(fn, radius).shape[0]
+    _ck.shaped(fn, "position", position, (n, 2), f"radius (N={n})", finite=True)
+    _ck.contact_pairs(fn, "pair", pair, n, f"radius (N={n})")
+    _ck.real(fn, "box_length", box_length, lo=0, lo_open=True)
+    return _contact_gaps(pair, position, radius, box_length)
+
+
+def _contact_gaps(pair, position, radius, box_length):
+    """:func:`contact_gaps` without the checks (inputs the analysis built itself)."""
     pair = np.asarray(pair).reshape(-1, 2)
     i, j = pair[:, 0], pair[:, 1]
     xi = position[i]
@@ -224,6 +300,16 @@ def _surface_hits(x, y, r, x0, spacing, n_rays):
     return best_i
 
 
+def _layer_inputs(fn: str, position, radius, fixed, box_length) -> int:
+    """Check a frame's grains: radius (N,) > 0, position (N, 2) finite, fixed (N,) bool, and the
+    box length L > 0 (:mod:`tiltpile.analysis.checks`). Returns N."""
+    n = _ck.radii(fn, radius).shape[0]
+    _ck.shaped(fn, "position", position, (n, 2), f"radius (N={n})", finite=True)
+    _ck.boolean(fn, "fixed", fixed, n, f"radius (N={n})")
+    _ck.real(fn, "box_length", box_length, lo=0, lo_open=True)
+    return n
+
+
 def top_layer(position: np.ndarray, radius: np.ndarray, fixed: np.ndarray, box_length: float,
               ray_spacing: float = 0.1) -> np.ndarray:
     """Top single layer: mobile grains exposed to the free surface.
@@ -237,6 +323,13 @@ def top_layer(position: np.ndarray, radius: np.ndarray, fixed: np.ndarray, box_l
 
     position (N, 2) in d (box frame), radius (N,), fixed (N,) bool. Returns (N,) bool.
     """
+    _layer_inputs("top_layer", position, radius, fixed, box_length)
+    _ck.real("top_layer", "ray_spacing", ray_spacing, lo=0, lo_open=True)
+    return _top_layer(position, radius, fixed, box_length, ray_spacing)
+
+
+def _top_layer(position, radius, fixed, box_length, ray_spacing=0.1):
+    """:func:`top_layer` without the checks (inputs the analysis built itself)."""
     n_rays = max(1, int(np.ceil(box_length / ray_spacing)))
     x0 = 0.5 * ray_spacing
     pos = np.ascontiguousarray(position, dtype=np.float64)
@@ -257,6 +350,16 @@ def bottom_layer(pair: np.ndarray, gaps: np.ndarray, fixed: np.ndarray,
 
     pair (C, 2); gaps (C,) from :func:`contact_gaps`; fixed (N,) bool. Returns (N,) bool.
     """
+    fn = "bottom_layer"
+    n = _ck.boolean(fn, "fixed", fixed, None).shape[0]
+    c = _ck.contact_pairs(fn, "pair", pair, n, f"fixed (N={n})")
+    _ck.shaped(fn, "gaps", gaps, (c,), f"pair (C={c})", empty_ok=True)
+    _ck.real(fn, "touch_tol", touch_tol)
+    return _bottom_layer(pair, gaps, fixed, touch_tol)
+
+
+def _bottom_layer(pair, gaps, fixed, touch_tol=0.05):
+    """:func:`bottom_layer` without the checks (inputs the analysis built itself)."""
     pair = np.asarray(pair).reshape(-1, 2)
     fixed = np.asarray(fixed, dtype=bool)
     i, j = pair[:, 0], pair[:, 1]
@@ -278,10 +381,23 @@ def bulk_mask(position: np.ndarray, radius: np.ndarray, fixed: np.ndarray, pair:
     See :func:`top_layer` and :func:`bottom_layer` for how the layers are found; ``top``: the
     top layer when the caller has it already (None: found here). Returns (N,) bool.
     """
-    gaps = contact_gaps(pair, position, radius, box_length)
-    bot = bottom_layer(pair, gaps, fixed, touch_tol)
+    fn = "bulk_mask"
+    n = _layer_inputs(fn, position, radius, fixed, box_length)
+    _ck.contact_pairs(fn, "pair", pair, n, f"radius (N={n})")
+    _ck.real(fn, "ray_spacing", ray_spacing, lo=0, lo_open=True)
+    _ck.real(fn, "touch_tol", touch_tol)
+    if top is not None:
+        _ck.boolean(fn, "top", top, n, f"radius (N={n})")
+    return _bulk_mask(position, radius, fixed, pair, box_length, ray_spacing, touch_tol, top)
+
+
+def _bulk_mask(position, radius, fixed, pair, box_length, ray_spacing=0.1, touch_tol=0.05,
+               top=None):
+    """:func:`bulk_mask` without the checks (inputs the analysis built itself)."""
+    gaps = _contact_gaps(pair, position, radius, box_length)
+    bot = _bottom_layer(pair, gaps, fixed, touch_tol)
     if top is None:
-        top = top_layer(position, radius, fixed, box_length, ray_spacing)
+        top = _top_layer(position, radius, fixed, box_length, ray_spacing)
     return ~np.asarray(fixed, dtype=bool) & ~bot & ~top
 
 
@@ -295,16 +411,28 @@ def bulk_coordination(pair: np.ndarray, active: np.ndarray, mobilized: np.ndarra
     n_rattlers (selected grains removed as rattlers), and the per-grain arrays z_i, m_i (after
     rattler removal) and rattler (N,) bool.
     """
+    fn = "bulk_coordination"
+    n = _ck.boolean(fn, "fixed", fixed, None).shape[0]
+    c = _ck.contact_pairs(fn, "pair", pair, n, f"fixed (N={n})")
+    _ck.boolean(fn, "active", active, c, f"pair (C={c})", empty_ok=True)
+    _ck.boolean(fn, "mobilized", mobilized, c, f"pair (C={c})", empty_ok=True)
+    _ck.boolean(fn, "bulk", bulk, n, f"fixed (N={n})")
+    _ck.real(fn, "min_contacts", min_contacts, lo=0)
+    return _bulk_coordination(pair, active, mobilized, bulk, fixed, min_contacts)
+
+
+def _bulk_coordination(pair, active, mobilized, bulk, fixed, min_contacts=2) -> dict:
+    """:func:`bulk_coordination` without the checks (inputs the analysis built itself)."""
     n = len(fixed)
-    z0 = contact_counts(n, pair, active)
-    ratt = rattler_mask(z0, fixed, min_contacts)
+    z0 = _contact_counts(n, pair, active)
+    ratt = _rattler_mask(z0, fixed, min_contacts)
     act = drop_contacts_of(pair, active, ratt)
     mob = act & np.asarray(mobilized, dtype=bool)
-    z_i = contact_counts(n, pair, act)
-    m_i = contact_counts(n, pair, mob)
+    z_i = _contact_counts(n, pair, act)
+    m_i = _contact_counts(n, pair, mob)
     sel = np.asarray(bulk, dtype=bool) & ~ratt
-    z, n_m, ncount = coordination(z_i, m_i, sel)
-    return {"z": z, "n_m": n_m, "dz_gen": float(dz_gen(z, n_m)), "n": ncount,
+    z, n_m, ncount = _coordination(z_i, m_i, sel)
+    return {"z": z, "n_m": n_m, "dz_gen": float(_dz_gen(z, n_m)), "n": ncount,
             "n_rattlers": int((np.asarray(bulk, dtype=bool) & ratt).sum()),
             "z_i": z_i, "m_i": m_i, "rattler": ratt}
 
@@ -315,6 +443,13 @@ def bulk_coordination(pair: np.ndarray, active: np.ndarray, mobilized: np.ndarra
 
 def pair_keys(pair: np.ndarray, n: int) -> np.ndarray:
     """Unique int64 key of each contact pair (i, j), j in [-3, n): i * (n + 3) + (j + 3)."""
+    _ck.count("pair_keys", "n", n)
+    _ck.contact_pairs("pair_keys", "pair", pair, n, f"n = {n}")
+    return _pair_keys(pair, n)
+
+
+def _pair_keys(pair, n):
+    """:func:`pair_keys` without the checks (inputs the analysis built itself)."""
     pair = np.asarray(pair, dtype=np.int64).reshape(-1, 2)
     return pair[:, 0] * (n + 3) + (pair[:, 1] + 3)
 
@@ -329,8 +464,19 @@ def lost_contacts(pair_a: np.ndarray, active_a: np.ndarray, pair_b: np.ndarray,
     pair_a (Ca, 2), active_a (Ca,) bool, pair_b (Cb, 2), active_b (Cb,) bool, n grains.
     Returns (Ca,) bool: lost[c] for each contact c of frame a (False for inactive ones).
     """
-    ka = pair_keys(pair_a, n)
-    kb = pair_keys(pair_b, n)[np.asarray(active_b, dtype=bool)]
+    fn = "lost_contacts"
+    _ck.count(fn, "n", n)
+    ca = _ck.contact_pairs(fn, "pair_a", pair_a, n, f"n = {n}")
+    cb = _ck.contact_pairs(fn, "pair_b", pair_b, n, f"n = {n}")
+    _ck.boolean(fn, "active_a", active_a, ca, f"pair_a (C={ca})", empty_ok=True)
+    _ck.boolean(fn, "active_b", active_b, cb, f"pair_b (C={cb})", empty_ok=True)
+    return _lost_contacts(pair_a, active_a, pair_b, active_b, n)
+
+
+def _lost_contacts(pair_a, active_a, pair_b, active_b, n):
+    """:func:`lost_contacts` without the checks (inputs the analysis built itself)."""
+    ka = _pair_keys(pair_a, n)
+    kb = _pair_keys(pair_b, n)[np.asarray(active_b, dtype=bool)]
     return np.asarray(active_a, dtype=bool) & ~np.isin(ka, kb)
 
 
@@ -340,7 +486,18 @@ def failing_grains(n: int, pair: np.ndarray, lost: np.ndarray,
 
     Fixed grains are never failing (when ``fixed`` is given).
     """
-    f = contact_counts(n, pair, lost) > 0
+    fn = "failing_grains"
+    _ck.count(fn, "n", n)
+    c = _ck.contact_pairs(fn, "pair", pair, n, f"n = {n}")
+    _ck.boolean(fn, "lost", lost, c, f"pair (C={c})", empty_ok=True)
+    if fixed is not None:
+        _ck.boolean(fn, "fixed", fixed, n, f"n = {n}")
+    return _failing_grains(n, pair, lost, fixed)
+
+
+def _failing_grains(n, pair, lost, fixed=None):
+    """:func:`failing_grains` without the checks (inputs the analysis built itself)."""
+    f = _contact_counts(n, pair, lost) > 0
     if fixed is not None:
         f &= ~np.asarray(fixed, dtype=bool)
     return f
@@ -391,7 +548,7 @@ def with_near_pairs(pair: np.ndarray, force: np.ndarray, status: np.ndarray | No
     force = np.asarray(force, dtype=float).reshape(-1, 2)
     n = len(fixed)
     near, _ = gap_contacts(position, radius, fixed, box_length, reach)
-    add = near[~np.isin(pair_keys(near, n), pair_keys(pair, n))]
+    add = near[~np.isin(_pair_keys(near, n), _pair_keys(pair, n))]
     k = len(add)
     pair = np.concatenate([pair.astype(np.int64), add])
     force = np.concatenate([force, np.zeros((k, 2))])
@@ -399,7 +556,7 @@ def with_near_pairs(pair: np.ndarray, force: np.ndarray, status: np.ndarray | No
         status = np.asarray(status)
         status = np.concatenate([status, np.zeros(k, dtype=status.dtype)])
     listed = np.concatenate([np.ones(len(pair) - k, dtype=bool), np.zeros(k, dtype=bool)])
-    return pair, force, status, listed, contact_gaps(pair, position, radius, box_length)
+    return pair, force, status, listed, _contact_gaps(pair, position, radius, box_length)
 
 
 def rule_mask(family: str, g: float | None, force: np.ndarray, listed: np.ndarray,
@@ -408,10 +565,10 @@ def rule_mask(family: str, g: float | None, force: np.ndarray, listed: np.ndarra
     :func:`with_near_pairs` (or the listed ones alone for "force" and "touching"): "force"
     f_n > 0, "touching" the listed ones, "gap" f_n > 0 or gap <= g. Returns (C,) bool."""
     if family == "force":
-        return active_mask(force)
+        return _active_mask(force)
     if family == "touching":
         return np.asarray(listed, dtype=bool).copy()
-    return active_mask(force) | (np.asarray(gap) <= g)
+    return _active_mask(force) | (np.asarray(gap) <= g)
 
 
 # ----------------------------------------------------------------------------------------------
@@ -423,8 +580,18 @@ def kinetic_energy(radius: np.ndarray, velocity: np.ndarray,
     """Per-grain translational and rotational kinetic energy of disks of density 1.
 
     m = pi r^2, I = m r^2 / 2;  e_t = m |v|^2 / 2,  e_r = I omega^2 / 2.
-    radius (N,) d; velocity (N, 2) sqrt(g d); omega (N,) sqrt(g/d). Returns two (N,) arrays.
+    radius (N,) d; velocity (N, 2) sqrt(g d); omega (N,) sqrt(g/d) (NaN where unknown: NaN
+    energies). Returns two (N,) arrays.
     """
+    fn = "kinetic_energy"
+    n = _ck.radii(fn, radius).shape[0]
+    _ck.shaped(fn, "velocity", velocity, (n, 2), f"radius (N={n})")
+    _ck.shaped(fn, "omega", omega, (n,), f"radius (N={n})")
+    return _kinetic_energy(radius, velocity, omega)
+
+
+def _kinetic_energy(radius, velocity, omega):
+    """:func:`kinetic_energy` without the checks (inputs the analysis built itself)."""
     r = np.asarray(radius, dtype=float)
     m = np.pi * r * r
     v = np.asarray(velocity, dtype=float).reshape(-1, 2)
@@ -434,12 +601,19 @@ def kinetic_energy(radius: np.ndarray, velocity: np.ndarray,
 
 
 def displacement(position: np.ndarray, reference: np.ndarray) -> np.ndarray:
-    """|x_i - x_i^ref| per grain, in d. position, reference (N, 2). Returns (N,)."""
+    """|x_i - x_i^ref| per grain, in d. position, reference (N, 2) (or (..., N, 2), reference
+    broadcasting against position). Returns (N,) (or (..., N))."""
+    for name, x in (("position", position), ("reference", reference)):
+        a = _ck.asarray("displacement", name, x)
+        if a.ndim < 1 or a.shape[-1] != 2:
+            _ck.fail("displacement", name, "have shape (N, 2)", str(a.shape))
+    _ck.broadcast("displacement", position=position, reference=reference)
     dx = np.asarray(position, dtype=float) - np.asarray(reference, dtype=float)
     return np.sqrt((dx * dx).sum(axis=-1))
 
 
 def gravity_vector(theta_deg) -> np.ndarray:
     """Unit gravity in the box frame, g = (sin theta, -cos theta); (2,) or (..., 2)."""
+    _ck.asarray("gravity_vector", "theta_deg", theta_deg)
     t = np.deg2rad(np.asarray(theta_deg, dtype=float))
     return np.stack([np.sin(t), -np.cos(t)], axis=-1)

@@ -37,6 +37,7 @@ import pandas as pd
 from tiltpile.outputs import output_lock, replaced_whole
 
 from . import avalanche as _av
+from . import checks as _ck
 from .legacy_codes import recorded_column_code
 from .tables import (CLUSTER_COLUMNS, CLUSTER_DOCS, DEFAULT_PARAMS, FRAME_COLUMNS,  # noqa: F401
                      FRAME_DOCS, RUN_TABLE_PARAMS, _params, failure_between, frame_contacts,
@@ -127,8 +128,14 @@ def _compute_one(run_path: str, params: dict) -> tuple[str, float]:
     return run_path, time.perf_counter() - t0
 
 
+def _check_dir(fn: str, ensemble_dir) -> None:
+    if not isinstance(ensemble_dir, (str, os.PathLike)):
+        _ck.fail(fn, "ensemble_dir", "be a directory's path", _ck.kind_of(ensemble_dir), TypeError)
+
+
 def run_files(ensemble_dir) -> list[Path]:
     """The run files ``run_*.h5`` of an ensemble directory, sorted by name."""
+    _check_dir("run_files", ensemble_dir)
     d = Path(ensemble_dir)
     if not d.is_dir():
         raise FileNotFoundError(f"ensemble directory {d} does not exist")
@@ -151,6 +158,7 @@ def compute_observables(ensemble_dir, workers: int | None = None, progress: bool
     Returns a DataFrame with one row per run file: run_file, cache, status ("cached" or
     "computed"), seconds.
     """
+    _check_dir("compute_observables", ensemble_dir)
     p = _params(params)
     if workers is not None and (isinstance(workers, bool) or not isinstance(workers, int) or workers < 1):
         raise ValueError(f"workers must be a positive integer or None, got {workers!r}")
@@ -212,6 +220,7 @@ def load_observables(ensemble_dir, compute_missing: bool = True, workers: int | 
     computed first when ``compute_missing`` (via :func:`compute_observables`), else a
     FileNotFoundError names them. Returns (frames, clusters) sorted by run and frame.
     """
+    _check_dir("load_observables", ensemble_dir)
     p = _params(params)
     files = run_files(ensemble_dir)
     if not files:
@@ -262,6 +271,9 @@ def run_table(frames: pd.DataFrame, **params) -> pd.DataFrame:
     """
     from . import stats as _st
     p = _params(params)
+    _ck.table("run_table", "frames", frames,
+              ("run", "frame", "theta_deg", "onset", "ke_trans")
+              + (("avalanching",) if p["slide_ke"] is None else ()))
     thr = p["slide_ke"]
     if thr is None:
         thr = _st.ke_threshold(frames, "ke_trans")[0]["threshold"]

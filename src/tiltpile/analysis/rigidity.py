@@ -97,7 +97,7 @@ from typing import NamedTuple
 import numpy as np
 from numba import njit
 
-from .contacts import contact_counts, drop_contacts_of, rattler_mask
+from .contacts import _contact_counts, _rattler_mask, drop_contacts_of
 
 GROUND = 0             # the ground's body index, and its cluster label in RigidityResult
 NOT_IN_FRAMEWORK = -1  # bond_cluster of a contact giving no bar; grain_cluster of a left-out grain
@@ -155,13 +155,13 @@ def body_bar_framework(n: int, pair: np.ndarray, active: np.ndarray, mobilized: 
     jj = np.maximum(j, 0)
     ground_j = (j < 0) | fixed[jj]
     use = active & ~(fixed[i] & ground_j)            # no contacts inside the ground
-    z0 = contact_counts(n, pair, active)
-    ratt = rattler_mask(z0, fixed, min_contacts)
+    z0 = _contact_counts(n, pair, active)
+    ratt = _rattler_mask(z0, fixed, min_contacts)
     out = ratt.copy()
     if exclude is not None:
         out |= np.asarray(exclude, dtype=bool) & ~fixed
     use = drop_contacts_of(pair, use, out)
-    out |= ~fixed & (contact_counts(n, pair, use) == 0)
+    out |= ~fixed & (_contact_counts(n, pair, use) == 0)
     body = np.full(n, -1, dtype=np.int64)
     body[fixed] = GROUND
     kept = ~fixed & ~out

@@ -60,6 +60,7 @@ import numpy as np
 import pandas as pd
 
 from . import avalanche as _av
+from . import checks as _ck
 from . import clusters as _cl
 from . import contacts as _ct
 from . import rigidity as _rg
@@ -228,6 +229,37 @@ def _run_id(run, path) -> int:
     return int(m.group(1))
 
 
+_NOT_GIVEN = object()
+
+
+def _grain_checks(fn: str, radius, fixed, box_length, mu, mu_wall) -> int:
+    """A frame's grains checked (:mod:`tiltpile.analysis.checks`): radius (N,) > 0, fixed (N,)
+    bool, box_length > 0, mu >= 0, mu_wall >= 0 or None. Returns N."""
+    n = _ck.radii(fn, radius).shape[0]
+    _ck.boolean(fn, "fixed", fixed, n, f"radius (N={n})")
+    _ck.real(fn, "box_length", box_length, lo=0, lo_open=True)
+    _ck.real(fn, "mu", mu, lo=0)
+    _ck.real(fn, "mu_wall", mu_wall, lo=0, none_ok=True)
+    return n
+
+
+def _frame_checks(fn: str, n: int, position, pair, force, status, velocity=_NOT_GIVEN,
+                  omega=_NOT_GIVEN) -> None:
+    """A frame's arrays checked against its N grains: position (N, 2) finite, pair (C, 2) of
+    grain indices and walls, force (C, 2) finite, status (C,) 0/1/2 or None; and, when given,
+    velocity (N, 2), omega (N,) (NaN allowed: a run without velocities)."""
+    like = f"radius (N={n})"
+    _ck.shaped(fn, "position", position, (n, 2), like, finite=True)
+    c = _ck.contact_pairs(fn, "pair", pair, n, like)
+    _ck.shaped(fn, "force", force, (c, 2), f"pair (C={c})", finite=True, empty_ok=True)
+    if status is not None:
+        _ck.statuses(fn, "status", status, c, f"pair (C={c})")
+    if velocity is not _NOT_GIVEN:
+        _ck.shaped(fn, "velocity", velocity, (n, 2), like)
+    if omega is not _NOT_GIVEN:
+        _ck.shaped(fn, "omega", omega, (n,), like)
+
+
 def frame_contacts(radius, fixed, box_length, position, pair, force, status, *, mu=0.5,
                    mu_wall=None, **params) -> dict:
     """The contacts of one frame as every observable sees them (also the pile pictures).
@@ -247,6 +279,15 @@ def frame_contacts(radius, fixed, box_length, position, pair, force, status, *, 
     grains, :func:`~tiltpile.analysis.contacts.top_layer`) and labels (N,) cluster labels (-1: none).
     """
     p = _params(params)
+    n = _grain_checks("frame_contacts", radius, fixed, box_length, mu, mu_wall)
+    _frame_checks("frame_contacts", n, position, pair, force, status)
+    return _frame_contacts(radius, fixed, box_length, position, pair, force, status, mu, mu_wall, p)
+
+
+def _frame_contacts(radius, fixed, box_length, position, pair, force, status, mu, mu_wall,
+                    p: dict) -> dict:
+    """:func:`frame_contacts` without the checks, at the checked analysis parameters ``p`` (the
+    engine's, which checks a run's grains once and each frame's arrays)."""
     eps, link, cluster_region = p["eps"], p["link"], p["cluster_region"]
     rule = _ct.parse_contact_rule(p["contact_rule"])
     lost_rule = rule if p["lost_rule"] is None else _ct.parse_contact_rule(p["lost_rule"])
@@ -259,10 +300,10 @@ def frame_contacts(radius, fixed, box_length, position, pair, force, status, *, 
     moving = mobile[pair[:, 0]] | ((pair[:, 1] >= 0) & mobile[jj])
     pair, force = pair[moving], force[moving]
     status = None if status is None else np.asarray(status)[moving]
-    top = _ct.top_layer(position, radius, fixed, box_length, p["ray_spacing"])
+    top = _ct._top_layer(position, radius, fixed, box_length, p["ray_spacing"])
     # the layers from the listed contacts, whatever the rule (the bulk is the same set of grains)
-    bulk = _ct.bulk_mask(position, radius, fixed, pair, box_length, p["ray_spacing"],
-                         p["touch_tol"], top=top)
+    bulk = _ct._bulk_mask(position, radius, fixed, pair, box_length, p["ray_spacing"],
+                          p["touch_tol"], top=top)
     reach = [g for _, g in (rule, lost_rule) if g is not None]
     listed, gaps = np.ones(len(pair), dtype=bool), None
     if reach:
@@ -271,9 +312,9 @@ def frame_contacts(radius, fixed, box_length, position, pair, force, status, *, 
     active = _ct.rule_mask(*rule, force, listed, gaps)
     lost_active = active if lost_rule == rule else _ct.rule_mask(*lost_rule, force, listed, gaps)
     mu_c = mu if mu_wall is None else np.where(pair[:, 1] < 0, mu_wall, mu)
-    mobil = _ct.mobilized_mask(force, status, mu_c, eps)
+    mobil = _ct._mobilized_mask(force, status, mu_c, eps)
     include = bulk if cluster_region == "bulk" else mobile
-    labels = _cl.critical_clusters(n, pair, active, mobil, include, link)
+    labels = _cl._critical_clusters(n, pair, active, mobil, include, link)
     return {"pair": pair, "force": force, "status": status, "active": active,
             "lost_active": lost_active, "mobilized": mobil, "bulk": bulk, "top": top,
             "labels": labels}
@@ -284,9 +325,9 @@ def lost_between(prev: dict, cur: dict, n: int, radius=None, box_length=None,
     """Which contacts of frame k (``prev``: pair, active, and position if ``lost_gap``) are lost
     by frame k + 1 (``cur``: pair, active, position): not active any more, and with ``lost_gap``
     also opened by more than lost_gap (d) (:func:`failure_between`). Returns (C_k,) bool."""
-    lost = _ct.lost_contacts(prev["pair"], prev["active"], cur["pair"], cur["active"], n)
+    lost = _ct._lost_contacts(prev["pair"], prev["active"], cur["pair"], cur["active"], n)
     if lost_gap is not None:
-        gap = _ct.contact_gaps(prev["pair"], cur["position"], radius, box_length)
+        gap = _ct._contact_gaps(prev["pair"], cur["position"], radius, box_length)
         lost = lost & (gap > lost_gap)
     return lost
 
@@ -305,7 +346,7 @@ def failure_between(prev: dict, cur: dict, fixed: np.ndarray, radius=None, box_l
     """
     n = fixed.size
     lost = lost_between(prev, cur, n, radius, box_length, lost_gap)
-    failing = _ct.failing_grains(n, prev["pair"], lost, fixed)
+    failing = _ct._failing_grains(n, prev["pair"], lost, fixed)
     n_act = int(prev["active"].sum())
     nf = int(failing.sum())
     nfc = int((failing & (prev["labels"] >= 0)).sum())
@@ -408,9 +449,9 @@ def _float32(a) -> np.ndarray:
                   "mu_wall", "params"))
 def _contacts(q):
     """The frame's contacts as every observable sees them (:func:`frame_contacts`)."""
-    return {"contacts": frame_contacts(q["radius"], q["fixed"], q["box_length"], q["position"],
-                                       q["pair"], q["force"], q["status"], mu=q["mu"],
-                                       mu_wall=q["mu_wall"], **q["params"])}
+    return {"contacts": _frame_contacts(q["radius"], q["fixed"], q["box_length"], q["position"],
+                                        q["pair"], q["force"], q["status"], q["mu"], q["mu_wall"],
+                                        q["params"])}
 
 
 @_produces("frame", gives=("frames.n_mobile", "frames.n_active", "frames.n_mobilized"),
@@ -427,8 +468,8 @@ def _counts(q):
 def _bulk(q):
     """Bulk z, n_m, dz_gen with rattlers removed (contacts.bulk_coordination)."""
     fc = q["contacts"]
-    bc = _ct.bulk_coordination(fc["pair"], fc["active"], fc["mobilized"], fc["bulk"], q["fixed"],
-                               q["params"]["min_contacts"])
+    bc = _ct._bulk_coordination(fc["pair"], fc["active"], fc["mobilized"], fc["bulk"],
+                                q["fixed"], q["params"]["min_contacts"])
     return {"bulk": bc, "frames.n_bulk": bc["n"], "frames.n_rattlers": bc["n_rattlers"],
             "frames.z": bc["z"], "frames.n_m": bc["n_m"], "frames.dz_gen": bc["dz_gen"]}
 
@@ -437,23 +478,23 @@ def _bulk(q):
            reads=("bulk", "fixed"))
 def _all_grains(q):
     bc = q["bulk"]
-    z_all, n_m_all, _ = _ct.coordination(bc["z_i"], bc["m_i"], ~q["fixed"] & ~bc["rattler"])
+    z_all, n_m_all, _ = _ct._coordination(bc["z_i"], bc["m_i"], ~q["fixed"] & ~bc["rattler"])
     return {"frames.z_all": z_all, "frames.n_m_all": n_m_all,
-            "frames.dz_gen_all": float(_ct.dz_gen(z_all, n_m_all))}
+            "frames.dz_gen_all": float(_ct._dz_gen(z_all, n_m_all))}
 
 
 @_produces("frame", gives=("frames.z_rest", "frames.n_rest"), reads=("contacts", "bulk"))
 def _rest(q):
     fc, bc = q["contacts"], q["bulk"]
     rest = fc["bulk"] & ~bc["rattler"] & (fc["labels"] < 0)
-    z_rest, _, n_rest = _ct.coordination(bc["z_i"], bc["m_i"], rest)
+    z_rest, _, n_rest = _ct._coordination(bc["z_i"], bc["m_i"], rest)
     return {"frames.z_rest": z_rest, "frames.n_rest": n_rest}
 
 
 @_produces("frame", gives=("frames.ke_trans", "frames.ke_rot"),
            reads=("radius", "velocity", "omega", "fixed"))
 def _energy(q):
-    e_t, e_r = _ct.kinetic_energy(q["radius"], q["velocity"], q["omega"])
+    e_t, e_r = _ct._kinetic_energy(q["radius"], q["velocity"], q["omega"])
     mobile = ~q["fixed"]
     nmob = int(mobile.sum())
     return {"frames.ke_trans": float(e_t[mobile].mean()) if nmob else np.nan,
@@ -464,8 +505,8 @@ def _energy(q):
 def _grain_contacts(q):
     """Per grain: active (z) and mobilized (m) contacts with every partner, (N,) each."""
     fc, n = q["contacts"], q["fixed"].size
-    return {"grain_contacts": {"z": _ct.contact_counts(n, fc["pair"], fc["active"]),
-                               "m": _ct.contact_counts(n, fc["pair"], fc["mobilized"])}}
+    return {"grain_contacts": {"z": _ct._contact_counts(n, fc["pair"], fc["active"]),
+                               "m": _ct._contact_counts(n, fc["pair"], fc["mobilized"])}}
 
 
 _CLUSTER_TABLE = ("cluster", "size", "z", "n_m", "dz", "orientation_deg", "phi_deg", "rg_long",
@@ -477,7 +518,7 @@ _CLUSTER_TABLE = ("cluster", "size", "z", "n_m", "dz", "orientation_deg", "phi_d
 def _cluster_table(q):
     """clusters.cluster_table of the frame; the orientation held to float32 precision."""
     gc = q["grain_contacts"]
-    tab = _cl.cluster_table(q["contacts"]["labels"], q["position"], gc["z"], gc["m"],
+    tab = _cl._cluster_table(q["contacts"]["labels"], q["position"], gc["z"], gc["m"],
                             q["theta_deg"])
     out = {f"clusters.{c}": tab[c].to_numpy() for c in _CLUSTER_TABLE}
     out["clusters.orientation_deg"] = _float32(out["clusters.orientation_deg"])
@@ -670,6 +711,9 @@ def frame_observables(radius, fixed, box_length, position, velocity, omega, pair
     columns (a DataFrame in table order, without those of the run stage), and keep a dict of
     arrays needed to compare with the next frame (pair, active, labels, position).
     """
+    n = _grain_checks("frame_observables", radius, fixed, box_length, mu, mu_wall)
+    _frame_checks("frame_observables", n, position, pair, force, status, velocity, omega)
+    _ck.real("frame_observables", "theta_deg", theta_deg)
     q = _frame_stage(_frame_inputs(radius, fixed, box_length, position, velocity, omega, pair,
                                    force, status, theta_deg, mu, mu_wall, _params(params)))
     cl = _split(q, "clusters")
@@ -677,20 +721,44 @@ def frame_observables(radius, fixed, box_length, position, velocity, omega, pair
             _keep(q))
 
 
+# what run_observables reads of a run (tiltpile.store.Run's attributes)
+_READER = ("config", "radius", "fixed", "box_length", "n_frames", "theta_deg", "step", "time",
+           "iterations", "residual", "contacts", "position", "velocity", "omega")
+
+
+def _check_reader(run) -> None:
+    """A run reader has what :func:`run_observables` reads: every attribute of ``_READER`` and
+    one value per frame in the per-frame ones."""
+    fn = "run_observables"
+    missing = [a for a in _READER if not hasattr(run, a)]
+    if missing:
+        _ck.fail(fn, "run", "be a run file's path or a reader with tiltpile.store.open_run's "
+                 "attributes", f"{type(run).__name__} lacking {', '.join(missing)}", TypeError)
+    nf = _ck.count(fn, "run.n_frames", run.n_frames)
+    for name in ("theta_deg", "step", "time", "iterations", "residual"):
+        _ck.shaped(fn, f"run.{name}", getattr(run, name), (nf,), f"run.n_frames ({nf})",
+                   finite=name == "theta_deg")
+
+
 def run_observables(run, run_id: int | None = None, **params) -> tuple[pd.DataFrame, pd.DataFrame]:
     """Per-frame and per-cluster observables of one run (columns: FRAME_DOCS, CLUSTER_DOCS).
 
     run: path of a run file, or an open reader with the :func:`tiltpile.store.open_run` API.
-    params: overrides of DEFAULT_PARAMS.
+    params: overrides of DEFAULT_PARAMS. The run's grains are checked once, each frame's arrays
+    as :func:`frame_observables` checks them; a refusal names the frame (a reader's).
     """
     p = _params(params)
+    if run_id is not None:
+        _ck.count("run_observables", "run_id", run_id)
     if isinstance(run, (str, os.PathLike)):
         with _open_run(run) as r:
             return run_observables(r, run_id=_run_id(r, run) if run_id is None else run_id, **params)
+    _check_reader(run)
     rid = _run_id(run, None) if run_id is None else int(run_id)
     scene = run.config.get("scene", {}) if isinstance(run.config, dict) else {}
     mu = float(scene.get("mu", 0.5))
     mu_wall = float(scene.get("mu_wall", mu))
+    n_grains = _grain_checks("run_observables", run.radius, run.fixed, run.box_length, mu, mu_wall)
     radius = np.asarray(run.radius, dtype=float)
     fixed = np.asarray(run.fixed, dtype=bool)
     L = float(run.box_length)
@@ -708,9 +776,12 @@ def run_observables(run, run_id: int | None = None, **params) -> tuple[pd.DataFr
     for pos, k in enumerate(index):
         k = int(k)
         pair, force, status = run.contacts(k)
-        q = _frame_stage(_frame_inputs(radius, fixed, L, np.asarray(run.position(k), dtype=float),
-                                       run.velocity(k), run.omega(k), pair, force, status,
-                                       theta[pos], mu, mu_wall, p))
+        position = np.asarray(run.position(k), dtype=float)
+        velocity, omega = run.velocity(k), run.omega(k)
+        _frame_checks(f"run_observables: frame {k}", n_grains, position, pair, force, status,
+                      velocity, omega)
+        q = _frame_stage(_frame_inputs(radius, fixed, L, position, velocity, omega, pair, force,
+                                       status, theta[pos], mu, mu_wall, p))
         row = _split(q, "frames")
         if prev is not None:
             for pr in pair_p:

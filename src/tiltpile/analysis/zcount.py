@@ -166,7 +166,7 @@ def z_by_variant(pair: np.ndarray, counted: np.ndarray, fixed: np.ndarray, bulk:
     counted = np.asarray(counted, dtype=bool)
     n = fixed.size
     mobile = ~fixed
-    ratt = _ct.rattler_mask(_ct.contact_counts(n, pair, counted), fixed, min_contacts)
+    ratt = _ct._rattler_mask(_ct._contact_counts(n, pair, counted), fixed, min_contacts)
     wall = boundary_contacts(pair, fixed)
     no_ratt = _ct.drop_contacts_of(pair, counted, ratt)
     z = np.full(len(variants), np.nan)
@@ -176,11 +176,11 @@ def z_by_variant(pair: np.ndarray, counted: np.ndarray, fixed: np.ndarray, bulk:
         ck = (v.walls, v.rattlers)
         if ck not in cache:
             m = counted if v.rattlers else no_ratt
-            cache[ck] = _ct.contact_counts(n, pair, m if v.walls else m & ~wall)
+            cache[ck] = _ct._contact_counts(n, pair, m if v.walls else m & ~wall)
         sel = (bulk & mobile) if v.bulk else mobile
         if not v.rattlers:
             sel = sel & ~ratt
-        z[k], _, cnt[k] = _ct.coordination(cache[ck], cache[ck], sel)
+        z[k], _, cnt[k] = _ct._coordination(cache[ck], cache[ck], sel)
     return z, cnt
 
 

@@ -7,7 +7,14 @@ import warnings
 
 import numpy as np
 
+from .. import checks as _ck
 from .errors import InsufficientDataError
+
+
+def _resampling(fn: str, confidence, n_resamples, least: int = 1) -> None:
+    """Check a confidence level in (0, 1) and a number of resamples >= ``least``."""
+    _ck.real(fn, "confidence", confidence, lo=0, hi=1, lo_open=True, hi_open=True)
+    _ck.count(fn, "n_resamples", n_resamples, lo=least)
 
 
 def bootstrap_ci(values, statistic=np.mean, confidence: float = 0.95, n_resamples: int = 9999,
@@ -22,6 +29,12 @@ def bootstrap_ci(values, statistic=np.mean, confidence: float = 0.95, n_resample
 
     Returns dict estimate, low, high, n, confidence, method (the one used).
     """
+    fn = "bootstrap_ci"
+    _ck.asarray(fn, "values", values)
+    _ck.function(fn, "statistic", statistic)
+    _resampling(fn, confidence, n_resamples)
+    if not isinstance(method, str) or method.lower() not in ("percentile", "basic", "bca"):
+        _ck.fail(fn, "method", "be 'BCa', 'percentile' or 'basic'", _ck.short(method))
     from scipy import stats as _sst
     x = np.asarray(values, dtype=float).ravel()
     x = x[np.isfinite(x)]
@@ -55,6 +68,12 @@ def bootstrap_runs_ci(groups: list, statistic, confidence: float = 0.95, n_resam
     not finite are dropped (reported as ``n_failed``). Returns dict estimate (on all runs), low,
     high, n (runs), n_resamples, n_failed, confidence, method "percentile".
     """
+    fn = "bootstrap_runs_ci"
+    if isinstance(groups, (str, bytes)) or not (hasattr(groups, "__len__")
+                                                and hasattr(groups, "__getitem__")):
+        _ck.fail(fn, "groups", "be a list (one item per run)", type(groups).__name__, TypeError)
+    _ck.function(fn, "statistic", statistic)
+    _resampling(fn, confidence, n_resamples, least=0)
     rng = np.random.default_rng(seed)
     k = len(groups)
     est = float(statistic(list(groups))) if k else float("nan")
@@ -80,6 +99,9 @@ def diff_ci(x, y, confidence: float = 0.95, n_resamples: int = 9999, seed: int =
     percentile bootstrap interval (scipy.stats.bootstrap, each set resampled on its own).
     Fewer than 2 values in a set: the interval is NaN. Returns dict estimate, low, high, n_x,
     n_y, confidence."""
+    _ck.asarray("diff_ci", "x", x)
+    _ck.asarray("diff_ci", "y", y)
+    _resampling("diff_ci", confidence, n_resamples)
     from scipy import stats as _sst
     x = np.asarray(x, dtype=float).ravel()
     y = np.asarray(y, dtype=float).ravel()
@@ -107,6 +129,9 @@ def leave_one_run_out(frames, seeds, statistic) -> list:
     left out in turn (rows of column ``run`` equal to it dropped): one value per seed, in
     ``seeds`` order. What a number chosen from the pooled runs (a bin of a density, a fitted
     valley) owes to any single run."""
+    _ck.table("leave_one_run_out", "frames", frames, ("run",))
+    _ck.shaped("leave_one_run_out", "seeds", seeds, ("K",), empty_ok=True)
+    _ck.function("leave_one_run_out", "statistic", statistic)
     run = frames["run"].to_numpy()
     return [statistic(frames[run != s]) for s in seeds]
 
@@ -120,6 +145,8 @@ def loo_stability(full: float, values, discrete: bool = False) -> dict:
     picked from bins takes few values) also values (the distinct finite values, sorted), counts
     (how many left-out runs give each), flip_share (the share of the runs whose removal changes the
     number: a value other than ``full``, NaN included) and firm (flip_share == 0)."""
+    _ck.real("loo_stability", "full", full, nonfinite_ok=True)
+    _ck.asarray("loo_stability", "values", values)
     v = np.asarray(values, dtype=float).ravel()
     n = int(v.size)
     fin = v[np.isfinite(v)]

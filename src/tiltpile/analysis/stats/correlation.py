@@ -7,6 +7,8 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from .. import checks as _ck
+
 
 def _period_labels(quiet: np.ndarray, period: np.ndarray | None) -> np.ndarray:
     """Period id per frame: given, or the maximal stretches of equal ``quiet`` value."""
@@ -26,6 +28,28 @@ def _lag_pairs(quiet: np.ndarray, period: np.ndarray, tau: int) -> np.ndarray:
     return k[ok]
 
 
+def _series(fn: str, period=None, **arrays) -> None:
+    """Check per-frame series (name=array): one-dimensional, of one length, numbers (a mask for
+    ``quiet``), and ``period`` (if given) of that length too."""
+    for name, x in arrays.items():
+        if name == "quiet":
+            _ck.boolean(fn, name, x, None)
+        else:
+            _ck.asarray(fn, name, x)
+    if period is not None:
+        arrays["period"] = _ck.asarray(fn, "period", period)
+    _ck.same_length(fn, **arrays)
+
+
+def _lags(fn: str, taus) -> None:
+    """Check lags: whole numbers (of frames); an iterator is taken as it comes."""
+    if hasattr(taus, "__next__"):
+        return
+    t = _ck.shaped(fn, "taus", taus, ("K",), finite=True, empty_ok=True)
+    if t.size and (t != np.round(t)).any():
+        _ck.fail(fn, "taus", "be whole numbers of frames", _ck.short(t.tolist()))
+
+
 def correlation_function(a, b, quiet, taus=range(-10, 11), period=None,
                          min_pairs: int = 3) -> pd.DataFrame:
     """C(tau), paper Eq. (2): correlation of a(k) (S_m) with b(k + tau) (N^f) over quiet frames.
@@ -42,6 +66,10 @@ def correlation_function(a, b, quiet, taus=range(-10, 11), period=None,
     values of a or b drop the pair. Returns DataFrame tau, C, n_pairs (C NaN below min_pairs or
     for a constant series).
     """
+    fn = "correlation_function"
+    _series(fn, period, a=a, b=b, quiet=quiet)
+    _lags(fn, taus)
+    _ck.count(fn, "min_pairs", min_pairs, floats_ok=True)
     a = np.asarray(a, dtype=float)
     b = np.asarray(b, dtype=float)
     quiet = np.asarray(quiet, dtype=bool)
@@ -63,6 +91,7 @@ def correlation_function(a, b, quiet, taus=range(-10, 11), period=None,
 
 def ensemble_periods(frames: pd.DataFrame) -> np.ndarray:
     """Period ids unique across runs for a per-frame table sorted by (run, frame)."""
+    _ck.table("ensemble_periods", "frames", frames, ("run", "period"))
     return frames.groupby(["run", "period"], sort=False).ngroup().to_numpy()
 
 
@@ -73,6 +102,9 @@ def correlation_function_ensemble(frames: pd.DataFrame, a: str = "largest_cluste
     frames needs columns run, frame, period, avalanching and the two named columns. Pairs never
     straddle two runs or two periods; means and variances are over the pooled pairs.
     """
+    fn = "correlation_function_ensemble"
+    _ck.table(fn, "frames", frames, ("run", "frame", "period", "avalanching", a, b))
+    _lags(fn, taus)
     f = frames.sort_values(["run", "frame"])
     return correlation_function(_column(f, a), _column(f, b), ~f["avalanching"].to_numpy(bool),
                                 taus, period=ensemble_periods(f))
@@ -129,6 +161,8 @@ def cluster_peaks(s_max, quiet, period=None, threshold_sigma: float = 1.0,
     """
     if check_peak_rule(peak_rule) == "c0":
         raise ValueError("peak_rule 'c0' defines no peaks: it reads the enhancement as C(0)")
+    _series("cluster_peaks", period, s_max=s_max, quiet=quiet)
+    _ck.real("cluster_peaks", "threshold_sigma", threshold_sigma)
     s = np.asarray(s_max, dtype=float)
     quiet = np.asarray(quiet, dtype=bool)
     per = _period_labels(quiet, period)
@@ -168,6 +202,11 @@ def failure_enhancement(s_max, n_fail, quiet, taus=range(0, 6), period=None,
     peak_rule "c0" the enhancement is C(tau) of :func:`correlation_function` (the +40% read as
     C(0) ~ 0.4) and n_peaks its frame pairs. Returns DataFrame tau, enhancement, n_peaks.
     """
+    fn = "failure_enhancement"
+    check_peak_rule(peak_rule)
+    _series(fn, period, s_max=s_max, n_fail=n_fail, quiet=quiet)
+    _lags(fn, taus)
+    _ck.real(fn, "threshold_sigma", threshold_sigma)
     nf = np.asarray(n_fail, dtype=float)
     quiet = np.asarray(quiet, dtype=bool)
     per = _period_labels(quiet, period)
@@ -196,6 +235,11 @@ def failure_enhancement_ensemble(frames: pd.DataFrame, a: str = "largest_cluster
     With peak_rule "c0": C(tau) of :func:`correlation_function_ensemble` as the enhancement, its
     frame pairs as n_peaks.
     """
+    fn = "failure_enhancement_ensemble"
+    check_peak_rule(peak_rule)
+    _ck.table(fn, "frames", frames, ("run", "frame", "period", "avalanching", a, b))
+    _lags(fn, taus)
+    _ck.real(fn, "threshold_sigma", threshold_sigma)
     if check_peak_rule(peak_rule) == "c0":
         return _c_as_enhancement(correlation_function_ensemble(frames, a, b, taus))
     parts = []

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from .. import checks as _ck
 from .errors import InsufficientDataError
 
 
@@ -23,6 +24,13 @@ def log_binned_density(x, bins_per_decade: int = 10, xmin: float | None = None,
     Returns a DataFrame with columns left, right, center (geometric), count, density
     (= count / (n_total * width)); ``df.attrs`` holds n_total and n_nonpositive.
     """
+    fn = "log_binned_density"
+    _ck.asarray(fn, "x", x)
+    _ck.count(fn, "bins_per_decade", bins_per_decade, lo=1, floats_ok=True)
+    _ck.real(fn, "xmin", xmin, lo=0, lo_open=True, none_ok=True)
+    _ck.real(fn, "xmax", xmax, lo=0, lo_open=True, none_ok=True)
+    if xmin is not None and xmax is not None and xmin > xmax:
+        _ck.fail(fn, "xmin", f"be <= xmax ({xmax})", repr(xmin))
     x = np.asarray(x, dtype=float).ravel()
     x = x[np.isfinite(x)]
     n_total = x.size
@@ -48,6 +56,9 @@ def log_binned_density(x, bins_per_decade: int = 10, xmin: float | None = None,
 def log_int_edges(s_max: int, bins_per_decade: int = 5, s_min: int = 1) -> np.ndarray:
     """Integer bin edges [a, b) covering s_min..s_max, log-spaced: ceil(s_min 10^(k /
     bins_per_decade)) made distinct (each small size gets its own bin), the last edge s_max + 1."""
+    _ck.count("log_int_edges", "s_max", s_max, floats_ok=True)
+    _ck.count("log_int_edges", "bins_per_decade", bins_per_decade, lo=1, floats_ok=True)
+    _ck.count("log_int_edges", "s_min", s_min, lo=1, floats_ok=True)
     top = int(max(s_max, s_min)) + 1
     k = np.arange(0, int(np.ceil(np.log10(top) * bins_per_decade)) + 2)
     edges = np.unique(np.ceil(s_min * 10.0 ** (k / bins_per_decade)).astype(np.int64))
@@ -61,6 +72,14 @@ def discrete_log_binned_density(s, bins_per_decade: int = 5, s_min: int = 1) -> 
     P(s) over the integers of the bin. s >= s_min only. Returns DataFrame left, right (exclusive),
     center (geometric mean of the bin's integers' range), count, density.
     """
+    fn = "discrete_log_binned_density"
+    _ck.count(fn, "bins_per_decade", bins_per_decade, lo=1, floats_ok=True)
+    _ck.count(fn, "s_min", s_min, lo=1, floats_ok=True)
+    a = _ck.asarray(fn, "s", s)
+    if a.dtype.kind == "f" and a.size:
+        big = a[a >= s_min]
+        if (big != np.round(big)).any():
+            _ck.fail(fn, "s", "hold integers (sizes)", f"{big[big != np.round(big)][0]}")
     s = np.asarray(s).ravel()
     s = s[s >= s_min].astype(np.int64)
     cols = ["left", "right", "center", "count", "density"]
@@ -80,6 +99,10 @@ def density_2d(x, y, bins=(40, 40), range=None) -> tuple[np.ndarray, np.ndarray,
     x, y: samples (NaN pairs dropped); bins, range as in numpy.histogram2d.
     Returns (H (nx, ny) density integrating to 1, xedges, yedges).
     """
+    _ck.asarray("density_2d", "x", x)
+    _ck.asarray("density_2d", "y", y)
+    if np.size(x) != np.size(y):
+        _ck.fail("density_2d", "y", f"have as many samples as x ({np.size(x)})", str(np.size(y)))
     x = np.asarray(x, dtype=float).ravel()
     y = np.asarray(y, dtype=float).ravel()
     ok = np.isfinite(x) & np.isfinite(y)
@@ -106,6 +129,13 @@ def _cell_overlap(x, w, edges) -> np.ndarray:
     return frac
 
 
+def _edges(fn: str, name: str, e) -> None:
+    """Check bin edges: one-dimensional, at least 2, finite, increasing."""
+    a = _ck.shaped(fn, name, e, ("K",), finite=True)
+    if a.size < 2 or not (np.diff(a) > 0).all():
+        _ck.fail(fn, name, "be at least 2 increasing bin edges", _ck.short(a.tolist()))
+
+
 def cell_density_2d(x, y, wx, wy, xedges, yedges) -> tuple[np.ndarray, float]:
     """Two-dimensional probability density of samples known only to within their lattice cells.
 
@@ -117,6 +147,17 @@ def cell_density_2d(x, y, wx, wy, xedges, yedges) -> tuple[np.ndarray, float]:
     edges. NaN samples are dropped. Returns (H (nx, ny) density over all finite samples,
     fraction of the mass outside the edges).
     """
+    fn = "cell_density_2d"
+    k = np.size(_ck.asarray(fn, "x", x))
+    for name, v in (("y", y), ("wx", wx), ("wy", wy)):
+        if np.size(_ck.asarray(fn, name, v)) != k:
+            _ck.fail(fn, name, f"have as many samples as x ({k})", str(np.size(v)))
+        if name != "y":
+            w = np.asarray(v, dtype=float)
+            if (w < 0).any():
+                _ck.fail(fn, name, "be >= 0 (cell widths)", str(w[w < 0][0]))
+    for name, e in (("xedges", xedges), ("yedges", yedges)):
+        _edges(fn, name, e)
     x, y, wx, wy = (np.asarray(v, dtype=float).ravel() for v in (x, y, wx, wy))
     ok = np.isfinite(x) & np.isfinite(y) & np.isfinite(wx) & np.isfinite(wy)
     if not ok.any():

@@ -10,6 +10,7 @@ from dataclasses import dataclass
 import numpy as np
 from scipy import integrate, optimize
 
+from .. import checks as _ck
 from .errors import InsufficientDataError, PoorFitWarning
 
 
@@ -78,6 +79,14 @@ class PowerLawCutoffFit:
         return np.where(s >= self.s_min, p, 0.0)
 
 
+def _bounds(fn: str, name: str, b, positive: bool = False) -> None:
+    """Check a (low, high) pair of finite numbers, low < high (both > 0 if ``positive``)."""
+    a = _ck.shaped(fn, name, b, (2,), finite=True)
+    if not a[0] < a[1] or (positive and not a[0] > 0):
+        _ck.fail(fn, name, "be (low, high) with " + ("0 < " if positive else "") + "low < high",
+                 _ck.short(tuple(a.tolist())))
+
+
 def fit_power_law_cutoff(s, s_min: int = 1, delta: float | None = None, min_samples: int = 50,
                          xi_bounds=(1e-2, 1e7), delta_bounds=(-5.0, 10.0),
                          max_delta_err: float | None = MAX_DELTA_ERR) -> PowerLawCutoffFit:
@@ -97,6 +106,15 @@ def fit_power_law_cutoff(s, s_min: int = 1, delta: float | None = None, min_samp
     (xi ~ 5) needs 100-200 clusters to pin delta to +-0.5. Warns (RuntimeWarning) when xi ends at
     its bound.
     """
+    fn = "fit_power_law_cutoff"
+    _ck.asarray(fn, "s", s)
+    _ck.count(fn, "s_min", s_min, lo=1, floats_ok=True)
+    _ck.real(fn, "delta", delta, none_ok=True)
+    _ck.count(fn, "min_samples", min_samples, floats_ok=True)
+    _bounds(fn, "xi_bounds", xi_bounds, positive=True)
+    _bounds(fn, "delta_bounds", delta_bounds)
+    _ck.real(fn, "max_delta_err", max_delta_err, lo=0, none_ok=True,
+             nonfinite_ok=True)
     s = np.asarray(s).ravel()
     s = s[np.isfinite(s)]
     if np.any(s != np.round(s)):
@@ -178,6 +196,13 @@ def sample_power_law_cutoff(delta: float, xi: float, size: int, s_min: int = 1,
     Inverse-CDF sampling on s_min..s_max, with s_max (default s_min + 50 xi + 1000) chosen so the
     truncated mass is negligible (< e^-50 of the exponential factor). Returns (size,) int64.
     """
+    fn = "sample_power_law_cutoff"
+    _ck.real(fn, "delta", delta)
+    _ck.real(fn, "xi", xi, lo=0, lo_open=True)
+    _ck.count(fn, "size", size)
+    _ck.count(fn, "s_min", s_min, lo=1, floats_ok=True)
+    if s_max is not None:
+        _ck.count(fn, "s_max", s_max, lo=s_min, floats_ok=True)
     rng = np.random.default_rng(rng)
     if s_max is None:
         s_max = int(s_min + 50 * xi + 1000)

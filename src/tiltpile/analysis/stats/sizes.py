@@ -9,13 +9,24 @@ import warnings
 import numpy as np
 import pandas as pd
 
+from .. import checks as _ck
 from .densities import log_int_edges
 from .errors import InsufficientDataError
 from .powerlaw import fit_power_law_cutoff
 
 
+def _windows(fn: str, width, lo, hi) -> None:
+    """Check windows of ``width`` > 0 tiling [lo, hi], lo <= hi, all finite."""
+    _ck.real(fn, "width", width, lo=0, lo_open=True)
+    _ck.real(fn, "lo", lo)
+    _ck.real(fn, "hi", hi)
+    if lo > hi:
+        _ck.fail(fn, "lo", f"be <= hi ({hi})", repr(lo))
+
+
 def window_edges(width: float = 0.5, lo: float = -15.0, hi: float = 0.0) -> np.ndarray:
     """Window edges hi, hi - width, ... down to >= lo, ascending (theta - theta_m, degrees)."""
+    _windows("window_edges", width, lo, hi)
     n = int(np.floor((hi - lo) / width + 1e-9))
     return hi - width * np.arange(n, -1, -1)
 
@@ -36,6 +47,14 @@ def cluster_size_windows(clusters: pd.DataFrame, frames: pd.DataFrame, width: fl
     fit_warning (empty, or the warnings of the fit: delta_err above ``MAX_DELTA_ERR``, xi at its
     bound). The fit's warnings are recorded there, one per window, not issued.
     """
+    fn = "cluster_size_windows"
+    _ck.table(fn, "clusters", clusters, ("run", "frame", "size"))
+    _ck.table(fn, "frames", frames, ("run", "frame", "theta_to_onset", "avalanching",
+                                     "largest_cluster"))
+    _windows(fn, width, lo, hi)
+    _ck.count(fn, "s_min", s_min, lo=1, floats_ok=True)
+    _ck.real(fn, "delta", delta, none_ok=True)
+    _ck.count(fn, "min_samples", min_samples, floats_ok=True)
     fr = frames[~frames["avalanching"].astype(bool) & np.isfinite(frames["theta_to_onset"])]
     fr = fr[["run", "frame", "theta_to_onset", "largest_cluster"]]
     cl = clusters[["run", "frame", "size"]].merge(fr[["run", "frame", "theta_to_onset"]],
@@ -73,6 +92,12 @@ def dz_by_size(clusters: pd.DataFrame, size_edges=None) -> pd.DataFrame:
     size, or integer bin edges [a, b). Returns DataFrame size_lo, size_hi (exclusive), n,
     dz_mean, dz_min, dz_std, z_mean, n_m_mean.
     """
+    _ck.table("dz_by_size", "clusters", clusters, ("size", "z", "n_m", "dz"))
+    if size_edges is not None:
+        e = _ck.shaped("dz_by_size", "size_edges", size_edges, ("K",), finite=True)
+        if e.size < 2 or not (np.diff(e) > 0).all():
+            _ck.fail("dz_by_size", "size_edges", "be at least 2 increasing bin edges",
+                     _ck.short(e.tolist()))
     s = clusters["size"].to_numpy()
     if size_edges is None:
         lo = s
@@ -95,6 +120,8 @@ def parity_log_edges(s_max: int, bins_per_decade: int = 5) -> np.ndarray:
     depends on the parity of the size (a critical contact inside a cluster counts for two of
     its grains), so bins mixing one odd and two even sizes and the next the reverse zig-zag from
     the binning alone."""
+    _ck.count("parity_log_edges", "s_max", s_max, floats_ok=True)
+    _ck.count("parity_log_edges", "bins_per_decade", bins_per_decade, lo=1, floats_ok=True)
     e = log_int_edges(s_max, bins_per_decade)
     top = int(e[-1])
     inner = e[(e > 1) & (e < top)]
@@ -114,6 +141,11 @@ def dz_distribution(clusters: pd.DataFrame, size_lo: int, size_hi: int | None = 
     of the different sizes leave no comb. Returns DataFrame center, count (fractional for a
     range of sizes), density (integrating to 1).
     """
+    fn = "dz_distribution"
+    _ck.table(fn, "clusters", clusters, ("size", "dz"))
+    _ck.count(fn, "size_lo", size_lo, lo=1, floats_ok=True)
+    if size_hi is not None:
+        _ck.count(fn, "size_hi", size_hi, lo=size_lo + 1, floats_ok=True)
     size_hi = size_lo + 1 if size_hi is None else size_hi
     sel = clusters[(clusters["size"] >= size_lo) & (clusters["size"] < size_hi)]
     dz = sel["dz"].to_numpy(float)

@@ -8,7 +8,14 @@ from __future__ import annotations
 import numpy as np
 import pandas as pd
 
+from .. import checks as _ck
 from .densities import log_binned_density
+
+
+def _departure(fn: str, factor, n_consecutive) -> None:
+    """Check the departure rule: a ratio ``factor`` >= 1, a whole number of bins."""
+    _ck.real(fn, "factor", factor, lo=1)
+    _ck.count(fn, "n_consecutive", n_consecutive, floats_ok=True)
 
 
 def power_law_departure(density: pd.DataFrame, fit_lo: float, fit_hi: float,
@@ -27,6 +34,14 @@ def power_law_departure(density: pd.DataFrame, fit_lo: float, fit_hi: float,
     fit_hi, threshold (left edge of the departing bin; NaN if none or if fewer than 2 bins were
     fitted), threshold_center.
     """
+    fn = "power_law_departure"
+    _ck.table(fn, "density", density)
+    if len(density):
+        _ck.table(fn, "density", density, ("left", "center", "count", "density"))
+    _ck.real(fn, "fit_lo", fit_lo, nonfinite_ok=True)
+    _ck.real(fn, "fit_hi", fit_hi, nonfinite_ok=True)
+    _departure(fn, factor, n_consecutive)
+    _ck.real(fn, "min_count", min_count)
     out = {"slope": np.nan, "intercept": np.nan, "n_fit_bins": 0, "fit_lo": float(fit_lo),
            "fit_hi": float(fit_hi), "threshold": np.nan, "threshold_center": np.nan}
     if len(density) == 0 or not (np.isfinite(fit_lo) and np.isfinite(fit_hi)):
@@ -63,6 +78,14 @@ def ke_threshold(frames: pd.DataFrame, ke_column: str = "ke_trans", bins_per_dec
     freshly deposited pile, below the frames just before failure) and the threshold is where the
     density departs from it (:func:`power_law_departure`). Returns (the departure dict, the density).
     """
+    fn = "ke_threshold"
+    _ck.table(fn, "frames", frames, (ke_column, "avalanching"))
+    _ck.count(fn, "bins_per_decade", bins_per_decade, lo=1, floats_ok=True)
+    q = _ck.shaped(fn, "fit_quantiles", fit_quantiles, (2,), finite=True)
+    if not 0 <= q[0] <= q[1] <= 1:
+        _ck.fail(fn, "fit_quantiles", "be (low, high) with 0 <= low <= high <= 1",
+                 _ck.short(tuple(q.tolist())))
+    _departure(fn, factor, n_consecutive)
     ke = frames[ke_column].to_numpy(float)
     av = frames["avalanching"].to_numpy(bool)
     dens = log_binned_density(ke, bins_per_decade)
@@ -78,6 +101,9 @@ def ke_threshold(frames: pd.DataFrame, ke_column: str = "ke_trans", bins_per_dec
 def fd_bins_per_decade(x, lo: int = 3, hi: int = 20) -> int:
     """Bins per decade for positive samples x by the Freedman-Diaconis rule on log10 x
     (width 2 IQR n^(-1/3)), clipped to [lo, hi]; ``lo`` when the IQR vanishes."""
+    _ck.asarray("fd_bins_per_decade", "x", x)
+    _ck.count("fd_bins_per_decade", "lo", lo, lo=1, floats_ok=True)
+    _ck.count("fd_bins_per_decade", "hi", hi, lo=lo, floats_ok=True)
     y = np.log10(np.asarray(x, dtype=float)[np.isfinite(x) & (np.asarray(x, dtype=float) > 0)])
     if y.size < 4:
         return int(lo)
@@ -85,6 +111,14 @@ def fd_bins_per_decade(x, lo: int = 3, hi: int = 20) -> int:
     if iqr <= 0:
         return int(lo)
     return int(np.clip(round(1.0 / (2.0 * iqr * y.size ** (-1.0 / 3.0))), lo, hi))
+
+
+def _counts_per_frame(fn: str, n_lost, n_active) -> None:
+    """Check per-frame lost and active contact counts: numbers, of one shape."""
+    a = _ck.asarray(fn, "n_lost", n_lost)
+    b = _ck.asarray(fn, "n_active", n_active)
+    if a.shape != b.shape:
+        _ck.fail(fn, "n_active", f"have the shape of n_lost {a.shape}", str(b.shape))
 
 
 def lost_fraction_edges(n_lost, n_active, bins_per_decade: int | None = None) -> np.ndarray:
@@ -100,6 +134,9 @@ def lost_fraction_edges(n_lost, n_active, bins_per_decade: int | None = None) ->
     n_active: per frame (frames with n_lost <= 0 or non-finite values are ignored). Returns
     ascending edges (fractions) covering the positive fractions.
     """
+    _counts_per_frame("lost_fraction_edges", n_lost, n_active)
+    if bins_per_decade is not None:
+        _ck.count("lost_fraction_edges", "bins_per_decade", bins_per_decade, lo=1, floats_ok=True)
     k = np.asarray(n_lost, dtype=float)
     c = np.asarray(n_active, dtype=float)
     ok = np.isfinite(k) & np.isfinite(c) & (k > 0) & (c > 0)
@@ -163,8 +200,22 @@ def _mixture_em(y: np.ndarray, k: int, n_init: int = 5, seed: int = 0, iters: in
     return best
 
 
+def _mixture(fn: str, k: int | None = None, **parts) -> None:
+    """Check a Gaussian mixture's weights, means and sds: one-dimensional, one per component
+    (``k`` of them if given), sds > 0 (NaN allowed: a fit that could not be made gives NaN);
+    and ``x`` (if given) numbers."""
+    if "x" in parts:
+        _ck.asarray(fn, "x", parts.pop("x"))
+    arrays = {name: _ck.shaped(fn, name, v, ("K",) if k is None else (k,))
+              for name, v in parts.items()}
+    _ck.same_length(fn, **arrays)
+    if (arrays["sds"] <= 0).any():
+        _ck.fail(fn, "sds", "be > 0", _ck.short(arrays["sds"].tolist()))
+
+
 def mixture_pdf(x, weights, means, sds) -> np.ndarray:
-    """Density of a 1D Gaussian mixture at x."""
+    """Density of a 1D Gaussian mixture at x (weights, means, sds: one per component, sds > 0)."""
+    _mixture("mixture_pdf", x=x, weights=weights, means=means, sds=sds)
     x = np.asarray(x, dtype=float)[..., None]
     w, m, s = (np.asarray(v, dtype=float) for v in (weights, means, sds))
     return (w / (s * np.sqrt(2 * np.pi)) * np.exp(-0.5 * ((x - m) / s) ** 2)).sum(axis=-1)
@@ -191,6 +242,15 @@ def bimodality(y, cutoff: float | None = None, seed: int = 0, init: dict | None 
     the two-component fit from there alone instead of from 8 starts: the fit that a small change of
     the samples moves the earlier one to (leave-one-run-out).
     """
+    fn = "bimodality"
+    _ck.asarray(fn, "y", y)
+    _ck.real(fn, "cutoff", cutoff, none_ok=True, nonfinite_ok=True)
+    if init is not None:
+        if not isinstance(init, dict) or not {"weights", "means", "sds"} <= set(init):
+            _ck.fail(fn, "init", "be a dict of weights, means and sds (a two-component fit)",
+                     _ck.short(init), TypeError)
+        for k in ("weights", "means", "sds"):     # sds below a floor are raised to it
+            _ck.shaped(fn, f"init['{k}']", init[k], (2,), "a two-component fit")
     y = np.asarray(y, dtype=float).ravel()
     y = y[np.isfinite(y)]
     nan = float("nan")
@@ -240,6 +300,7 @@ def dequantized_log_fraction(n_lost, n_active, seed: int = 0) -> np.ndarray:
     small counts (1, 2, 3 contacts) are spikes on a log axis, and a mixture fit spends a
     component on the spike of k = 1 instead of on a population. Seeded: reproducible.
     """
+    _counts_per_frame("dequantized_log_fraction", n_lost, n_active)
     k = np.asarray(n_lost, dtype=float)
     c = np.asarray(n_active, dtype=float)
     ok = np.isfinite(k) & np.isfinite(c) & (k >= 1) & (c > 0)
