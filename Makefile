@@ -487,6 +487,8 @@ definition-records: | $(STAMP)
 	@test -n "$(wildcard $(DATA)/run_*.h5)" || { echo "make definition-records: no run files in DATA=$(DATA)"; exit 2; }
 	$(ANALYSIS_ENV) $(PY) -m tiltpile definitions $(DATA) --write-records $(BASE_FIGURES)/definitions \
 	  --g $(DEF_G) $(if $(filter all,$(DEF_KEYS)),,--only $(DEF_KEYS)) $(if $(WORKERS),--workers $(WORKERS)) --quiet
+	$(if $(wildcard $(BASE_FIGURES)/records/run_*.npz),$(PY) -m tiltpile definitions $(BASE_FIGURES)/records \
+	  --compact $(BASE_FIGURES)/definitions --quiet)
 
 # `make solver-study [SOLVER_DATA=/path] [SOLVER_FIGURES=figures/solver-study] [SOLVER_RUNS=6] [WORKERS=W]
 # [ONLY=S1,S2] [NULL=K] [RECORDS_ONLY=1]`: the solver's choice (`tiltpile solver-study`, docs/cli.md):

@@ -6,6 +6,8 @@ import json
 import shutil
 from pathlib import Path
 
+import numpy as np
+import pandas as pd
 import pytest
 
 from tiltpile.figures import definitions as fd
@@ -223,6 +225,64 @@ def test_the_cli_writes_each_definitions_records_and_studies_a_chosen_few(smoke_
             json.loads(json.dumps(style.jsonable(fig["numbers"]))), stem
 
 
+def test_compacted_definition_records_give_the_same_tables_and_study(smoke_ensemble, smoke_study,
+                                                                      tmp_path, capsys):
+    """`tiltpile definitions RECORDS --compact ROOT` rewrites each definition's records holding
+    only what the default records (or an earlier definition's) do not hold bit for bit: every
+    table reads back the same, column for column and bit for bit, the study's JSON is the same
+    (but for the --records directory its command names), the records stay up to date for the
+    writer, and a second pass changes nothing."""
+    from tiltpile.analysis.ensemble_data import load_records
+    from tiltpile.cli import main
+    from tiltpile.figures.records import write_records
+    from tiltpile.record import read_record, record_differences, record_files
+
+    g = smoke_study["fit"]["g"]
+    keys = ("list", "mixed", "stride-2", "mixed-stride-2")
+    write_records(smoke_ensemble, tmp_path / "records", workers=1, progress=False)
+    whole, small = tmp_path / "whole", tmp_path / "small"
+    for _ in fd.write_definition_records(smoke_ensemble, whole, g, only=keys, workers=1,
+                                         progress=False):
+        pass
+    shutil.copytree(whole, small)
+    argv = ["definitions", str(tmp_path / "records"), "--compact", str(small), "--quiet"]
+    assert main(argv) == 0
+    lines = capsys.readouterr().out.splitlines()
+    assert [line.split(":")[0] for line in lines] == list(keys)
+    assert all(" 3 record(s) compacted" in line for line in lines), lines
+    params = {d["key"]: d["params"] for d in fd.definitions(g, ROOT / "notebooks")}
+    for key in keys:
+        assert sum(p.stat().st_size for p in record_files(small / key)) < \
+            sum(p.stat().st_size for p in record_files(whole / key))
+        for a, b in zip(record_files(whole / key), record_files(small / key)):
+            assert record_differences(read_record(a), read_record(b)) == [], (key, b.name)
+        ea = load_records(whole / key, "smoke", **params[key])
+        eb = load_records(small / key, "smoke", **params[key])
+        for table in ("frames", "clusters"):
+            ta, tb = getattr(ea, table), getattr(eb, table)
+            pd.testing.assert_frame_equal(ta, tb, check_exact=True)
+            assert all(ta[c].to_numpy().tobytes() == tb[c].to_numpy().tobytes() for c in ta), (key, table)
+    # mixed: the list's clusters and the force rule's losses; nothing of its own but what differs
+    with np.load(record_files(small / "mixed")[0]) as z:
+        assert not {"clusters__size", "clusters__z", "clusters__speed_max"} & set(z.files)
+    docs = []
+    for root in (whole, small):
+        out = tmp_path / f"{root.name}.json"
+        assert main(["definitions", str(tmp_path / "records"), "--records", str(root), "--g", f"{g!r}",
+                     "--out", str(out), "--quiet"]) == 0
+        docs.append(json.loads(out.read_text()))
+    docs[1]["command"] = docs[1]["command"].replace(str(small), str(whole))
+    assert json.dumps(docs[0], sort_keys=True) == json.dumps(docs[1], sort_keys=True)
+    capsys.readouterr()
+    # up to date for the writer (nothing rewritten), unchanged by a second pass
+    before = {p: p.read_bytes() for key in keys for p in record_files(small / key)}
+    for key, n, _ in fd.write_definition_records(smoke_ensemble, small, g, only=keys, progress=False):
+        assert n == 0, key
+    assert main(argv) == 0
+    assert all(" 0 record(s) compacted" in line for line in capsys.readouterr().out.splitlines())
+    assert {p: p.read_bytes() for p in before} == before
+
+
 @pytest.mark.parametrize("extra, words", [
     (["--only", "list,nope"], "--only list,nope: no definition nope"),
     (["--only", ","], "no definition (none given)"),
@@ -231,6 +291,9 @@ def test_the_cli_writes_each_definitions_records_and_studies_a_chosen_few(smoke_
     (["--write-records", "ROOT", "--g", "0.002", "--workers", "0"], "--workers must be >= 1"),
     (["--workers", "2", "--out", "x.json"], "--workers is only for --write-records"),
     ([], "--out FILE is required"),
+    (["--compact", "ROOT", "--out", "x.json"], "--compact rewrites records, not the study"),
+    (["--compact", "ROOT", "--g", "0.002"], "--compact rewrites records, not the study"),
+    (["--compact", "ROOT"], "no records run_*.npz (with --compact, DIR holds the records"),
 ])
 def test_bad_options_stop_in_one_line_with_nothing_written(smoke_ensemble, tmp_path, capsys, extra, words):
     from tiltpile.cli import main

@@ -1,6 +1,7 @@
 """``tiltpile definitions DIR --out FILE``: every figure number of one ensemble under each
 plausible definition the paper leaves open (:mod:`tiltpile.figures.definitions`), for the
-report's "What the disagreements depend on"."""
+report's "What the disagreements depend on". ``--write-records ROOT`` writes each definition's
+records, ``--compact ROOT`` rewrites them holding only what the default records do not."""
 
 from __future__ import annotations
 
@@ -31,10 +32,27 @@ def add_parser(sub) -> None:
                    help="instead of the study: the records of DIR's finished runs at each "
                         "definition's analysis parameters, into ROOT/<definition>/ (up-to-date ones "
                         "skipped), what --records reads; needs --g; --out not used")
+    p.add_argument("--compact", type=Path, default=None, metavar="ROOT",
+                   help="instead of the study: rewrite the records ROOT/<definition>/ leaving out "
+                        "what DIR's records (the default parameters, the same runs) or an earlier "
+                        "definition's hold bit for bit, each checked to read back the same record; "
+                        "what --records reads, unchanged; --out, --g not used")
     p.add_argument("--workers", type=int, default=None,
                    help="with --write-records: processes for observables not cached yet")
     p.add_argument("--quiet", action="store_true", help="no progress lines")
     p.set_defaults(func=run)
+
+
+def _records_and_root(records, option: str, root) -> None:
+    """ConfigError unless ``records`` holds records and ``root`` (given as ``option``) is a
+    directory."""
+    from tiltpile.record import record_files
+
+    if not record_files(records):
+        raise ConfigError(f"{records}: no records run_*.npz (with {option}, DIR holds the "
+                          "records at the default parameters)")
+    if not root.is_dir():
+        raise ConfigError(f"{option} {root}: no such directory")
 
 
 def run(args) -> int:
@@ -44,19 +62,17 @@ def run(args) -> int:
 
     from .same_piles import _preset_of
 
-    from tiltpile.record import record_files
-
     if not args.dir.is_dir():
         raise ConfigError(f"{args.dir}: no such ensemble directory")
-    if args.records is None and not sorted(args.dir.glob("run_*.h5")):
+    if args.compact is not None and (args.write_records is not None or args.records is not None
+                                     or args.out is not None or args.g is not None):
+        raise ConfigError("--compact rewrites records, not the study: leave out --write-records, "
+                          "--records, --out and --g")
+    if args.records is None and args.compact is None and not sorted(args.dir.glob("run_*.h5")):
         raise ConfigError(f"{args.dir}: no run_*.h5 files (the definitions need the run files, or "
                           "--records ROOT with the records of each definition)")
     if args.records is not None:
-        if not record_files(args.dir):
-            raise ConfigError(f"{args.dir}: no records run_*.npz (with --records, DIR holds the "
-                              "records at the default parameters)")
-        if not args.records.is_dir():
-            raise ConfigError(f"--records {args.records}: no such directory")
+        _records_and_root(args.dir, "--records", args.records)
         if args.g is None:
             raise ConfigError("--records needs --g (the fit of g needs the run files)")
     if args.g is not None and not args.g > 0:
@@ -70,6 +86,13 @@ def run(args) -> int:
                               f"the study has {', '.join(keys)}")
     if args.workers is not None and args.write_records is None:
         raise ConfigError("--workers is only for --write-records")
+    if args.compact is not None:
+        _records_and_root(args.dir, "--compact", args.compact)
+        for key, n, before, after, root in df.compact_definition_records(args.dir, args.compact, only,
+                                                                         progress=not args.quiet):
+            print(f"{key}: {n} record(s) compacted, {before / 1e6:.2f} MB -> {after / 1e6:.2f} MB; "
+                  f"{root}", file=sys.stdout)
+        return 0
     if args.write_records is not None:
         if args.records is not None or args.out is not None:
             raise ConfigError("--write-records writes records, not the study: leave out --records and --out")

@@ -245,6 +245,57 @@ def write_definition_records(data_dir, root, g: float, only=None, workers: int |
         yield d["key"], int((done["status"] == "written").sum()), out
 
 
+def compact_definition_records(base, root, only=None, progress: bool = True):
+    """Leave out of the records of each definition (``root/<key>/``: :func:`write_definition_records`)
+    what the records at the default parameters (``base``, the same runs: ``run_SSSS.npz`` of the
+    same name) or those of an earlier definition (in the order of :func:`definitions`) hold bit
+    for bit (:func:`tiltpile.record.compact_record`): the grains, the preparation, the picture
+    frames the rules choose alike, and every table column they compute alike (the force rule's
+    losses and kinetic columns for every list; the list's clusters for the mixed rule; the
+    clusters and most frame columns of stride 2 are those of every frame at even frames). Each
+    record is written again only if it is the same record, bit for bit, read back whole; what
+    differs stays in it. ``only``: these keys. Holds each directory's records lock
+    (:data:`tiltpile.figures.records.LOCK`). Yields (key, records rewritten, bytes before, bytes
+    after, directory)."""
+    from tiltpile.outputs import output_lock
+    from tiltpile.record import compact_record, record_files
+
+    from .records import LOCK
+
+    unknown, keys = unknown_keys(only or ())
+    if unknown:
+        raise ValueError(f"no definition {unknown}; the study has {', '.join(keys)}")
+    base, root = Path(base), Path(root)
+    if not record_files(base):
+        raise FileNotFoundError(f"no records run_*.npz in {base} (the records at the default "
+                                "parameters, which the definitions' records borrow from)")
+    earlier = []
+    for d in definitions(1.0):
+        if not d["params"]:
+            continue
+        out = root / d["key"]
+        todo = record_files(out) if only is None or d["key"] in only else []
+        if todo:
+            n, before, after = 0, 0, 0
+            with output_lock(out, LOCK, "a records writer", wait=True):
+                bar = None
+                if progress:
+                    from tqdm.auto import tqdm
+                    bar = tqdm(total=len(todo), desc=d["key"], unit="record")
+                for rec in todo:
+                    sources = [base / rec.name] + [root / k / rec.name for k in earlier]
+                    res = compact_record(rec, sources)
+                    n += res["status"] == "compacted"
+                    before += res["bytes_before"]
+                    after += res["bytes_after"]
+                    if bar is not None:
+                        bar.update()
+                if bar is not None:
+                    bar.close()
+            yield d["key"], n, before, after, out
+        earlier.append(d["key"])
+
+
 def _declares(stem: str, params: dict, notebooks_dir) -> bool:
     from .same_piles import _notebook_cells
 

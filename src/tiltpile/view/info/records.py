@@ -42,7 +42,8 @@ def record_summary(path) -> dict:
             "theta_max": float(th.max()) if th.size else float("nan"),
             "end_reason": m.get("end_reason"), "end_theta_deg": m.get("end_theta_deg"),
             "cost": dict(m.get("cost") or {}), "health": dict(m.get("health") or {}),
-            "source": dict(m.get("source") or {}), "onsets": th[on]}
+            "source": dict(m.get("source") or {}), "onsets": th[on],
+            "borrowed": dict(m.get("borrowed") or {})}
 
 
 def _ended(s: dict) -> str:
@@ -74,6 +75,12 @@ def record_info(path) -> str:
     if src:
         out.append(f"from       {src.get('file', '?')} ({human_size(int(src.get('size', 0)))}, "
                    f"frames sha256 {str(src.get('frames_sha256', ''))[:12]})")
+    b = s["borrowed"]
+    if b:     # tiltpile.record.compact_record: pieces other records of the run hold bit for bit
+        n = (sum(len(v) for v in (b.get("columns") or {}).values()) + len(b.get("members") or {})
+             + len(b.get("pictures") or {}))
+        out.append(f"borrows    {n} piece(s) from {', '.join(b.get('sources') or [])} "
+                   "(held bit for bit there, checked when read)")
     out += config_lines(s["config"], s["seed"])
     return "\n".join(out)
 
