@@ -181,6 +181,17 @@ endef
 
 figures: $(FIG_JSON) $(REPORT) $(MAIN_REPORT) $(DIAGNOSTICS)
 
+# An unknown PRESET (no RUNS_<preset> above, no RUNS=M, no records to build from) is answered with
+# the list of the presets when make reads this file, before anything is installed, written or
+# locked (tests/workflow/test_presets.py): for the ensemble, a study, or figures made from runs.
+PRESET_NAMES = $(sort $(patsubst RUNS_%,%,$(filter RUNS_%,$(.VARIABLES))))
+UNKNOWN_PRESET = unknown PRESET=$(PRESET): the presets are $(PRESET_NAMES) (another preset file: give RUNS=M)
+ifeq ($(strip $(RUNS)),)
+ifneq ($(filter ensemble study,$(MAKECMDGOALS))$(if $(ALL_RECORDS),,$(filter figures $(FIG_JSON) $(REPORT),$(MAKECMDGOALS))),)
+$(error $(UNKNOWN_PRESET))
+endif
+endif
+
 # One build at a time per figures directory: before anything is written (but after the NB check,
 # which writes nothing), FIGURES/.build.lock is taken for this make process and held until it
 # exits, by a background process that watches it (`python -m tiltpile.outputs hold`; a flock the
@@ -197,7 +208,7 @@ build-lock: | $(STAMP) check-nb
 # The runs and their observables. Always checked (the ensemble skips finished runs); the stamp
 # lists every run file's name, size and time and changes only when a run does.
 $(DATA)/.runs: FORCE | $(STAMP) check-nb build-lock
-	@test -n "$(RUNS)" || { echo "unknown PRESET=$(PRESET): the presets are $(sort $(patsubst RUNS_%,%,$(filter RUNS_%,$(.VARIABLES)))) (another preset file: give RUNS=M)"; exit 2; }
+	@test -n "$(RUNS)" || { echo "$(UNKNOWN_PRESET)"; exit 2; }
 ifeq ($(strip $(SET)),)
 	$(PY) -m tiltpile ensemble --preset $(PRESET) --runs $(RUNS) --out $(BASE_DATA) $(ENSEMBLE_ARGS)
 ifneq ($(DATA),$(BASE_DATA))
@@ -248,7 +259,7 @@ ENSEMBLE_COMMIT = $(shell git rev-parse --short=12 HEAD 2>/dev/null)
 ENSEMBLE_CODE = $(DATA)-code/$(ENSEMBLE_COMMIT)
 .PHONY: ensemble
 ensemble: | $(STAMP)
-	@test -n "$(RUNS)" || { echo "unknown PRESET=$(PRESET): the presets are $(sort $(patsubst RUNS_%,%,$(filter RUNS_%,$(.VARIABLES)))) (another preset file: give RUNS=M)"; exit 2; }
+	@test -n "$(RUNS)" || { echo "$(UNKNOWN_PRESET)"; exit 2; }
 	@test -n "$(ENSEMBLE_COMMIT)" || { echo "make ensemble runs a copy of the committed code: run it in a git checkout"; exit 2; }
 	@test -d $(ENSEMBLE_CODE)/src || { rm -rf $(ENSEMBLE_CODE).tmp && mkdir -p $(ENSEMBLE_CODE).tmp && \
 	  git archive $(ENSEMBLE_COMMIT) src | tar -x -C $(ENSEMBLE_CODE).tmp && mv $(ENSEMBLE_CODE).tmp $(ENSEMBLE_CODE); }
@@ -302,14 +313,16 @@ $(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli
 	$(PY) -m tiltpile report --figures $(FIGURES) --out $@
 
 # The main report, paper/REPRODUCTION.md: the paper's scale first, every axis beside it; it reads
-# the figures' JSON of every scale and study under figures/ (tiltpile.report.main).
+# the figures' JSON of every scale and study under figures/ (tiltpile.report.main), and the wall
+# times of their runs from the committed records (tiltpile.report.wall: the figures' JSON hold none).
 # `make docs`: the README's and the docs' generated blocks from the committed figures' JSON
 # (tiltpile.report.blocks); `make reports` runs it too.
 docs: | $(STAMP)
 	$(PY) -m tiltpile docs
 
 ALL_REPORT_READS := $(wildcard figures/fig*.json figures/*.json figures/*/fig*.json figures/*/*.json \
-                      figures/*/same-piles/*.json figures/*/same-piles/*/fig*.json)
+                      figures/*/same-piles/*.json figures/*/same-piles/*/fig*.json \
+                      figures/records/run_*.npz figures/*/records/run_*.npz)
 paper/REPRODUCTION.md: $(ALL_REPORT_READS) \
                        $(wildcard src/tiltpile/report/*.py src/tiltpile/report/templates/*.j2) | $(STAMP)
 	$(PY) -m tiltpile report --root figures --out $@
@@ -564,7 +577,7 @@ STUDY_ARGS = --key '$(KEY)' --values $(foreach v,$(VALUES),'$(v)') --preset $(PR
 .PHONY: study
 study: | $(STAMP)
 	@test -n "$(strip $(KEY))" -a -n "$(strip $(VALUES))" || { echo "make study: give KEY=section.key and VALUES=\"v1 v2 ...\""; exit 2; }
-	@test -n "$(RUNS)" || { echo "unknown PRESET=$(PRESET): the presets are $(sort $(patsubst RUNS_%,%,$(filter RUNS_%,$(.VARIABLES)))) (another preset file: give RUNS=M)"; exit 2; }
+	@test -n "$(RUNS)" || { echo "$(UNKNOWN_PRESET)"; exit 2; }
 ifeq ($(RECORDS_ONLY),)
 	$(PY) -m tiltpile study $(STUDY_ARGS) --runs-only
 	$(ANALYSIS_ENV) $(PY) -m tiltpile study $(STUDY_ARGS)

@@ -38,9 +38,17 @@ def test_the_readme_holds_every_generated_block_it_is_built_from():
 
 
 def _copy_json(tmp_path: Path) -> Path:
-    """A repository of the committed figures' JSON (no records, no pictures) and the documents
-    with generated blocks."""
+    """A repository of the committed figures' JSON (no pictures), the records the documents'
+    wall times come from (links to the committed ``figures/*/records/``:
+    tiltpile.report.wall) and the documents with generated blocks."""
+    for r in sorted((ROOT / "figures").glob("*/records")) + [ROOT / "figures" / "records"]:
+        if any(r.glob("run_*.npz")):
+            dest = tmp_path / r.relative_to(ROOT)
+            dest.parent.mkdir(parents=True, exist_ok=True)
+            dest.symlink_to(r, target_is_directory=True)
     for p in (ROOT / "figures").rglob("*.json"):
+        if (tmp_path / p.relative_to(ROOT)).exists():   # in a linked records directory
+            continue
         dest = tmp_path / p.relative_to(ROOT)
         dest.parent.mkdir(parents=True, exist_ok=True)
         shutil.copyfile(p, dest)

@@ -4,6 +4,8 @@ and docs/cli.md say of them is what it says (make cannot import it, so this test
 import re
 from pathlib import Path
 
+import pytest
+
 from tiltpile import config
 from tiltpile.report import document, scales
 
@@ -101,3 +103,49 @@ def test_every_committed_figures_directory_is_not_ignored_by_git():
     r = subprocess.run(["git", "check-ignore", "--no-index", *paths], cwd=ROOT,
                        capture_output=True, text=True)
     assert r.stdout.split() == [], f"ignored by .gitignore: {r.stdout.split()}"
+
+
+def _scratch(tmp_path) -> Path:
+    """What make reads of the checkout (the Makefile, the sources and notebooks, linked), and
+    nothing it builds: no .venv, no data, no figures."""
+    for name in ("Makefile", "environment.txt", "pyproject.toml"):
+        (tmp_path / name).write_bytes((ROOT / name).read_bytes())
+    for name in ("src", "notebooks"):
+        (tmp_path / name).symlink_to(ROOT / name, target_is_directory=True)
+    return tmp_path
+
+
+@pytest.mark.parametrize("args", [["figures", "PRESET=smok"], ["figures", "PRESET=nope", "FROM=records"],
+                                  ["figures/nope/fig1_isostaticity.json", "PRESET=nope"],
+                                  ["ensemble", "PRESET=smok"],
+                                  ["study", "KEY=scene.mu", "VALUES=0.2", "PRESET=smok"]])
+def test_an_unknown_preset_is_answered_with_the_presets_before_anything_is_done(tmp_path, args):
+    """`make figures PRESET=smok` (and the other targets that take a preset) names the presets in
+    one line and stops before installing, locking or writing anything (when make reads the
+    Makefile)."""
+    import subprocess
+
+    from makehelpers import MAKE_ENV
+
+    tree = _scratch(tmp_path)
+    r = subprocess.run(["make", *args], cwd=tree, capture_output=True, text=True, timeout=120, env=MAKE_ENV)
+    assert r.returncode == 2, r.stdout + r.stderr
+    name = next(a for a in args if a.startswith("PRESET=")).split("=")[1]
+    said = [line for line in (r.stdout + r.stderr).splitlines() if "unknown PRESET" in line]
+    assert len(said) == 1, r.stdout + r.stderr
+    assert f"unknown PRESET={name}: the presets are {' '.join(sorted(config.PRESETS))} " in said[0]
+    assert sorted(p.name for p in tree.iterdir()) == ["Makefile", "environment.txt", "notebooks",
+                                                       "pyproject.toml", "src"]
+
+
+def test_the_commands_answer_an_unknown_preset_with_the_presets(capsys):
+    from tiltpile.cli import main
+
+    for argv in (["ensemble", "--preset", "smok", "--out", "x"],
+                 ["simulate", "--preset", "smok", "--seed", "1", "--out", "x.h5"],
+                 ["config", "--preset", "smok"]):
+        with pytest.raises(SystemExit) as e:
+            main(argv)
+        assert e.value.code == 2
+        err = capsys.readouterr().err
+        assert "invalid choice: 'smok'" in err and all(f"'{p}'" in err for p in config.PRESETS), err

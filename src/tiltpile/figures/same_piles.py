@@ -264,9 +264,9 @@ def documents_each(jobs, stems=FIGURES, notebooks_dir="notebooks", workers: int 
 
 
 def document(meta: dict, stem: str, numbers: dict) -> dict:
-    """The figure's JSON document as ``style.save`` writes it, in JSON form (NaN as None)."""
-    return json.loads(json.dumps({"figure": stem, **style.jsonable(meta or {}),
-                                  "numbers": style.jsonable(numbers)}))
+    """The figure's JSON document as ``style.save`` writes it (:func:`style.document`: no wall
+    time in its header), in JSON form (NaN as None)."""
+    return json.loads(json.dumps(style.document(stem, numbers, meta)))
 
 
 def scalars(numbers: dict) -> dict[str, float]:

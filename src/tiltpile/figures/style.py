@@ -135,12 +135,42 @@ def jsonable(x):
     return _record_jsonable(x, nan_as_none=True)
 
 
+#: The fields of an ensemble's ``cost`` (``ensemble_data.ensemble_cost``) that are facts of the
+#: machine and the session rather than of the runs: the median wall seconds per run and how many
+#: runs were timed whole (a resumed run is not). A figure document leaves them out, so that the
+#: same runs give the same bytes on any machine and a build of a committed preset leaves the tree
+#: as it was; each run's wall time stays in its run file and its record, where
+#: ``tiltpile info`` and the reports read it (:mod:`tiltpile.report.wall`). The deterministic
+#: costs (steps, sweeps, capped steps per run) stay.
+WALL_CLOCK = ("runs_timed", "seconds_per_run")
+
+
+def without_wall_clock(meta):
+    """``meta`` with the :data:`WALL_CLOCK` fields of every ``cost`` mapping in it left out, at
+    any depth (the preparation study's header holds one per ensemble); a copy, the rest as is."""
+    if isinstance(meta, dict):
+        return {k: ({f: x for f, x in v.items() if f not in WALL_CLOCK}
+                    if k == "cost" and isinstance(v, dict) else without_wall_clock(v))
+                for k, v in meta.items()}
+    if isinstance(meta, (list, tuple)):
+        return [without_wall_clock(v) for v in meta]
+    return meta
+
+
+def document(name: str, numbers: dict, meta: dict | None = None) -> dict:
+    """A figure's JSON document, ``{"figure": name, **meta, "numbers": numbers}``, as plain JSON
+    types (:func:`jsonable`), its header without the machine's wall times
+    (:func:`without_wall_clock`)."""
+    return {"figure": name, **jsonable(without_wall_clock(meta or {})), "numbers": jsonable(numbers)}
+
+
 def save(fig, name: str, numbers: dict, figures_dir, meta: dict | None = None) -> dict[str, Path]:
     """Write ``figures_dir/name.pdf``, ``.png`` and ``.json`` (each to a temporary name of this
     process, synced, then renamed: :func:`tiltpile.outputs.replaced_whole`).
 
-    The JSON holds ``{"figure": name, **meta, "numbers": numbers}`` with numpy scalars and arrays
-    turned into plain numbers and lists, NaN and inf written as null. Returns the three paths.
+    The JSON is :func:`document`: ``{"figure": name, **meta, "numbers": numbers}`` with numpy
+    scalars and arrays turned into plain numbers and lists, NaN and inf written as null, and no
+    wall time in the header's ``cost`` (:data:`WALL_CLOCK`). Returns the three paths.
     """
     out = Path(figures_dir)
     out.mkdir(parents=True, exist_ok=True)
@@ -149,7 +179,7 @@ def save(fig, name: str, numbers: dict, figures_dir, meta: dict | None = None) -
         kw = {"metadata": {"CreationDate": None}} if ext == "pdf" else {"metadata": {"Software": None}}
         with replaced_whole(paths[ext]) as tmp:
             fig.savefig(tmp, format=ext, **kw)
-    write_json(paths["json"], {"figure": name, **jsonable(meta or {}), "numbers": jsonable(numbers)})
+    write_json(paths["json"], document(name, numbers, meta))
     return paths
 
 

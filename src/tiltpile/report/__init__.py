@@ -35,6 +35,8 @@ One concern per module; the names of ``__all__`` import from ``tiltpile.report``
   paper pile against pile, the figure numbers against what chance moves, the decision;
 - :mod:`.friction`: the section "Friction": the friction study, the Mohr-Coulomb reading tested
   across frictions, and the angles beside the literature's;
+- :mod:`.wall`: the wall time of the runs behind a figure document, from their committed
+  records (the figures' JSON hold none);
 - :mod:`.document`: loading, rendering and writing the report, and the files it reads.
 """
 

@@ -45,8 +45,10 @@ class BlockError(ValueError):
 
 def presets(root="figures") -> list[dict]:
     """One row per preset: its name, grains, history, engine, the runs of its ``make figures``,
-    and its measured cost per run where a committed figure document holds it."""
-    import json
+    and its measured cost per run where a committed figure document holds it: the sweeps (the
+    document's ``cost``) and the wall time (its runs' committed records, :mod:`.wall`; None
+    without them)."""
+    from . import wall
 
     out = []
     for p in cfgmod.PRESET_TABLE:
@@ -55,7 +57,7 @@ def presets(root="figures") -> list[dict]:
         cost = {}
         base = Path(root).parent / p.figures
         for f in sorted(base.glob("fig2_*.json")) + sorted(base.glob(f"same-piles/{p.name}/fig2_*.json")):
-            cost = json.loads(f.read_text()).get("cost") or {}
+            cost = wall.load(f).get("cost") or {}
         step = cfg.protocol.pretilt_per_step_deg or cfg.protocol.tilt_per_step_deg
         rate = step / cfg.protocol.tilt_per_step_deg
         out.append({"name": p.name, "grains": cfg.scene.n, "runs": p.runs,
@@ -87,15 +89,16 @@ def figure_meta(root="figures") -> dict[str, dict]:
     """{preset: what its figure documents say beside their numbers}: ``n_runs``, ``n_grains``,
     ``seeds``, ``history`` (the label, "fresh" without one), ``engine`` ("lammps" for the DEM,
     "cd" otherwise) and ``cost`` (the runs' own cost record, ``ensemble_data.ensemble_cost``:
-    mean sweeps and DEM steps, median wall seconds of the runs timed whole), of every preset
-    whose figures directory holds a Fig. 2 document."""
-    import json
+    mean sweeps and DEM steps from the document, median wall seconds of the runs timed whole
+    from their committed records, :mod:`.wall`, absent without them), of every preset whose
+    figures directory holds a Fig. 2 document."""
+    from . import wall
 
     out = {}
     for p in cfgmod.PRESET_TABLE:
         f = Path(root).parent / p.figures / "fig2_avalanche_criterion.json"
         if f.is_file():
-            out[p.name] = _meta(json.loads(f.read_text()))
+            out[p.name] = _meta(wall.load(f))
     return out
 
 

@@ -22,16 +22,18 @@ from . import definitions as _definitions
 from . import engines as _engines
 from . import friction as _friction
 from . import history_rate as _rate
+from . import wall as _wall
 from .judging import AGREES, MISSING, Claim
 from .scales import preset_dir, render_scales, scale_dirs
 from .studies import STUDIES, load_studies, render_preparation
 
 
 def load_figures(figures_dir) -> dict[str, dict]:
-    """{stem: json document} for every ``figures_dir/fig*.json``."""
+    """{stem: json document} for every ``figures_dir/fig*.json``, its ``cost`` with the wall time
+    of its runs from their committed records (:func:`.wall.load`)."""
     out = {}
     for p in sorted(Path(figures_dir).glob("fig*.json")):
-        out[p.stem] = json.loads(p.read_text())
+        out[p.stem] = _wall.load(p)
     return out
 
 
@@ -305,7 +307,8 @@ def root_inputs(figures_dir) -> list[Path]:
     (:mod:`.engines`), the paper-fast study and its two sides' figures
     (:mod:`.history_rate`, each pair), the definitions study at 4000 grains (:func:`.definitions.render_large`,
     :func:`.definitions.render_every`)
-    and the friction study (:mod:`.friction`). The Makefile's ALL_REPORT_READS holds them
+    and the friction study (:mod:`.friction`); and the committed records the wall times of those
+    figure documents come from (:func:`.wall.inputs`). The Makefile's ALL_REPORT_READS holds them
     (tests/workflow/test_build_graph.py checks it)."""
     d = Path(figures_dir)
     root = scale_dirs(d)["default"]
@@ -327,6 +330,9 @@ def root_inputs(figures_dir) -> list[Path]:
                                            for p in sorted(s.glob("fig*.json"))]
     fast = preset_dir(d, _rate.PAIR[1])
     found += [fast / _definitions.FILE, fast / _definitions.EVERY_FILE]
+    # the committed records the wall times of the figure documents come from (.wall)
+    found += [r for s in dict.fromkeys(p.parent for p in found if p.name.startswith("fig"))
+              for r in _wall.inputs(s)]
     out = []
     for p in found:
         if p.exists() and p not in out:

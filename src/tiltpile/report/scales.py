@@ -5,13 +5,13 @@ where each scale's figures live (:func:`scale_dirs`).
 
 from __future__ import annotations
 
-import json
 import math
 import statistics
 from pathlib import Path
 
 from tiltpile import config as cfgmod
 
+from . import wall as _wall
 from .judging import SEPARATION, approx, num as _num, show as _f, show_ci as _ci, wrong_side as _wrong_side
 
 
@@ -114,13 +114,15 @@ def _loo_range(n: dict, key: str) -> str:
 
 
 def _cost_rows(doc: dict) -> dict[str, str]:
-    """What a run of the scale cost, from the runs' own cost records (the JSON's ``cost``,
-    ``ensemble_data.ensemble_cost``): NLGS sweeps, wall time per run (the median over the runs
-    whose whole wall time is known) and the core-hours of all the runs at that median."""
+    """What a run of the scale cost, from the runs' own cost records (``ensemble_data.ensemble_cost``):
+    NLGS sweeps (the JSON's ``cost``), wall time per run (the median over the runs whose whole
+    wall time is known, from their committed records: :mod:`.wall`, which ``render_scales``
+    reads the document through) and the core-hours of all the runs at that median."""
     cost, n_runs = doc.get("cost") or {}, doc.get("n_runs")
     sweeps, sec, timed = _num(cost.get("sweeps_per_run")), _num(cost.get("seconds_per_run")), cost.get("runs_timed")
     wall = (f"{_f(sec / 60.0, '.1f')} min (median of {timed} of {n_runs} runs)" if math.isfinite(sec)
-            else "not recorded whole (resumed runs)")
+            else "not recorded whole (resumed runs)" if timed is not None
+            else "not committed (no records)")
     hours = (f"~{approx(sec * n_runs / 3600.0, 2)} (median x {n_runs} runs)"
              if math.isfinite(sec) and n_runs else "n/a")
     return {"NLGS sweeps per run": f"{_f(sweeps / 1e6, '.1f')} M" if math.isfinite(sweeps) else "n/a",
@@ -132,7 +134,7 @@ def render_scales(figures_dir) -> list[str]:
     cols = {}
     for name, d in scale_dirs(figures_dir).items():
         p = d / "fig2_avalanche_criterion.json"
-        cols[name] = _scale_rows({}, json.loads(p.read_text())) if p.exists() else None
+        cols[name] = _scale_rows({}, _wall.load(p)) if p.exists() else None
     keys = next((list(c) for c in cols.values() if c), [])
     if not keys:
         return []
