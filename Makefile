@@ -39,8 +39,8 @@ test-fast: setup
 #
 # A build graph: the ensemble (finished runs are skipped, interrupted ones resume) and its
 # observables, then one target per figure, $(FIGURES)/figN_<name>.json (with its PNG and PDF),
-# rebuilt only when its notebook, its figure module, the shared figure code, the analysis code,
-# the runs or the notebook parameters changed; then the reproduction report from the JSON.
+# rebuilt only when its notebook, the package (any file under src/), the runs or the notebook
+# parameters changed; then the reproduction report from the JSON.
 # The default preset writes figures/ and paper/REPRODUCTION.md (both committed); another preset
 # writes figures/PRESET/. SET (configuration keys, a new ensemble) and NB (papermill parameters,
 # e.g. NB="-p lost_gap 0.0001") need VARIANT=name: the variant's runs go to data/PRESET-VARIANT/
@@ -147,27 +147,9 @@ endif
 
 NOTEBOOKS := $(wildcard notebooks/fig*.ipynb)
 FIG_JSON := $(patsubst notebooks/%.ipynb,$(FIGURES)/%.json,$(NOTEBOOKS))
-# The code a figure's JSON depends on. FIG_COMMON: what every figure notebook imports (data and
-# style, the analysis but for the two studies' own modules, the run-file and record readers, the
-# configuration (the piles' history in every JSON's header), the writers of whole files, the package's version); FIG_USES_<module>: the other modules of src/tiltpile its figure module
-# imports, directly or not. A figure module imports no other figure's module (shared helpers
-# live in data.py, style.py, snapshot.py), save the preparation study, which is Fig. 2's
-# computation on several ensembles.
-# tests/workflow/test_build_graph.py checks these lists against the imports.
-ANALYSIS := $(wildcard src/tiltpile/analysis/*.py src/tiltpile/analysis/*/*.py)
-FIG_COMMON := $(wildcard src/tiltpile/__init__.py src/tiltpile/figures/__init__.py \
-                         src/tiltpile/figures/style.py src/tiltpile/figures/data.py \
-                         src/tiltpile/record.py src/tiltpile/store/*.py src/tiltpile/config.py \
-                         src/tiltpile/outputs.py) \
-              $(filter-out %/structure.py %/zcount.py,$(ANALYSIS))
-FIG_USES_fig1 := src/tiltpile/figures/snapshot.py
-FIG_USES_fig2 := src/tiltpile/paper_values.py
-FIG_USES_fig3 := src/tiltpile/figures/snapshot.py src/tiltpile/paper_values.py
-FIG_USES_fig5 := src/tiltpile/paper_values.py
-FIG_USES_fig7 := src/tiltpile/figures/snapshot.py
-FIG_USES_preparation := src/tiltpile/figures/fig2.py src/tiltpile/analysis/structure.py \
-                        src/tiltpile/paper_values.py
-fig_module = $(firstword $(subst _, ,$(1)))
+# What a figure, a study or a report is computed with: the package. Any edit under src/ rebuilds
+# them (minutes from records); their notebooks and data are their other inputs. No list to keep.
+PACKAGE := $(shell find src/tiltpile -name '*.py' -not -path '*/__pycache__/*')
 ENSEMBLE_ARGS := $(if $(SCHEDULER),--scheduler $(SCHEDULER)) $(if $(WORKERS),--workers $(WORKERS)) \
                  $(foreach kv,$(SET),--set '$(kv)')
 # notebooks/run_diagnostics.ipynb, if present: executed on the first run of the ensemble
@@ -290,9 +272,8 @@ $(EXECUTED)/%.parameters.yaml: FORCE | $(STAMP) check-nb build-lock
 	@$(PY) -m tiltpile.figures.parameters select notebooks/$*.ipynb \
 	  --note 'data_dir=$(FIG_DATA) preset=$(PRESET)' -- $(NB) > $@.tmp && $(call update_if_changed,$@)
 
-# one target per figure: notebooks/figN_<name>.ipynb with src/tiltpile/figures/figN.py
-$(FIG_JSON): $(FIGURES)/%.json: notebooks/%.ipynb src/tiltpile/figures/$$(call fig_module,$$*).py \
-                   $$(FIG_USES_$$(call fig_module,$$*)) $(FIG_COMMON) $(FIG_INPUT) \
+# one target per figure: notebooks/figN_<name>.ipynb (tiltpile.figures.build)
+$(FIG_JSON): $(FIGURES)/%.json: notebooks/%.ipynb $(PACKAGE) $(FIG_INPUT) \
                    $(EXECUTED)/%.parameters.yaml | $(STAMP)
 	@mkdir -p $(EXECUTED) $(FIGURES)
 	@echo "papermill $< -> $(EXECUTED)/$*.ipynb"
@@ -308,8 +289,7 @@ $(FIG_JSON): $(FIGURES)/%.json: notebooks/%.ipynb src/tiltpile/figures/$$(call f
 REPORT_SCALES := smoke default-fresh default-dem paper paper-fresh paper-fast
 REPORT_COMPARED := default-fresh default-dem paper paper-fresh
 REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json)
-$(REPORT): $(REPORT_READS) $(wildcard src/tiltpile/report/*.py) src/tiltpile/cli/report.py src/tiltpile/__init__.py \
-           src/tiltpile/outputs.py src/tiltpile/paper_values.py | $(STAMP)
+$(REPORT): $(REPORT_READS) $(PACKAGE) $(wildcard src/tiltpile/report/templates/*.j2) | $(STAMP)
 	$(PY) -m tiltpile report --figures $(FIGURES) --out $@
 
 # The main report, paper/REPRODUCTION.md: the paper's scale first, every axis beside it; it reads
@@ -323,8 +303,8 @@ docs: | $(STAMP)
 ALL_REPORT_READS := $(wildcard figures/fig*.json figures/*.json figures/*/fig*.json figures/*/*.json \
                       figures/*/same-piles/*.json figures/*/same-piles/*/fig*.json \
                       figures/records/run_*.npz figures/*/records/run_*.npz)
-paper/REPRODUCTION.md: $(ALL_REPORT_READS) \
-                       $(wildcard src/tiltpile/report/*.py src/tiltpile/report/templates/*.j2) | $(STAMP)
+paper/REPRODUCTION.md: $(ALL_REPORT_READS) $(PACKAGE) \
+                       $(wildcard src/tiltpile/report/templates/*.j2) | $(STAMP)
 	$(PY) -m tiltpile report --root figures --out $@
 	$(PY) -m tiltpile report --root figures --studies --out paper/STUDIES.md
 
@@ -398,12 +378,6 @@ prep_space := $(prep_empty) $(prep_empty)
 PREP_PARAMS = {"data_dirs": [$(subst $(prep_space),$(prep_comma),$(foreach d,$(PREP_DIRS),"$(d)"))], \
                "labels": [$(if $(strip $(PREP_LABELS)),"$(subst |,"$(prep_comma)",$(PREP_LABELS))")], \
                "figures_dir": "$(PREP_FIGURES)"}
-# what `tiltpile zcount` computes with: its study module and what that imports, and the command
-ZCOUNT_CODE := $(wildcard src/tiltpile/__init__.py src/tiltpile/figures/__init__.py \
-                          src/tiltpile/figures/style.py src/tiltpile/figures/zcount.py \
-                          src/tiltpile/record.py src/tiltpile/store/*.py src/tiltpile/cli/zcount.py \
-                          src/tiltpile/outputs.py src/tiltpile/paper_values.py) \
-               $(filter-out %/ensemble_data.py %/legacy_codes.py %/structure.py,$(ANALYSIS))
 .PHONY: preparation preparation-runs zcount
 preparation-runs: | $(STAMP) check-nb
 ifeq ($(strip $(PREP_GIVEN)),)
@@ -431,8 +405,7 @@ $(PREP_EXECUTED)/preparation.parameters.yaml: FORCE | $(STAMP) check-nb
 # (or their output is missing); .executed and .zcount stand for PREP_FIGURES/preparation.json and
 # zcount.json, which the report reads without building them.
 preparation: $(PREP_EXECUTED)/.executed
-$(PREP_EXECUTED)/.executed: notebooks/preparation.ipynb src/tiltpile/figures/preparation.py \
-                            $(FIG_USES_preparation) $(FIG_COMMON) $(PREP_EXECUTED)/.inputs \
+$(PREP_EXECUTED)/.executed: notebooks/preparation.ipynb $(PACKAGE) $(PREP_EXECUTED)/.inputs \
                             $(PREP_EXECUTED)/preparation.parameters.yaml \
                             $(if $(wildcard $(PREP_FIGURES)/preparation.json),,FORCE) | $(STAMP)
 	@mkdir -p $(PREP_FIGURES)
@@ -452,7 +425,7 @@ preparation-paper:
 	  PREP_FIGURES=figures/paper VARIANT=paper-prep NB="-p slide_ke 0.001"
 
 zcount: $(PREP_EXECUTED)/.zcount
-$(PREP_EXECUTED)/.zcount: $(ZCOUNT_CODE) $(PREP_EXECUTED)/.inputs \
+$(PREP_EXECUTED)/.zcount: $(PACKAGE) $(PREP_EXECUTED)/.inputs \
                           $(if $(wildcard $(PREP_FIGURES)/zcount.json),,FORCE) | $(STAMP)
 	@mkdir -p $(PREP_FIGURES)
 	$(ANALYSIS_ENV) $(PY) -m tiltpile zcount $(PREP_DIRS) --out $(PREP_FIGURES)/zcount $(if $(PREP_WORKERS),--workers $(PREP_WORKERS))
@@ -492,7 +465,9 @@ engines: | $(STAMP)
 # analysis parameters), into BASE_FIGURES/definitions/<key>/ (up-to-date ones skipped;
 # `tiltpile definitions --write-records`): run it with `make records` as runs finish, so that
 # `tiltpile definitions BASE_FIGURES/records --records BASE_FIGURES/definitions --g DEF_G`
-# needs no run files.
+# needs no run files. Then each definition's records are rewritten holding only what the records
+# at the default parameters (BASE_FIGURES/records) or an earlier definition's do not hold bit for
+# bit (`tiltpile definitions --compact`; docs/run-file.md).
 DEF_G ?= 0.00216
 DEF_KEYS ?= list,mixed,stride-2
 .PHONY: definition-records

@@ -127,7 +127,7 @@ def test_the_legacy_table_code_holds_the_committed_records_columns():
     """The 58 committed records hold the whole-table digest 11ce282f6e591a47, which
     legacy_codes maps to the producers' codes: every column they hold has an entry, and every
     figure's columns are served by them as they are (their bytes are never rewritten)."""
-    from tiltpile.figures import fig1, fig2, fig3, fig4, fig5, fig6, fig7, preparation
+    from tiltpile.figures import build, preparation
     entry = legacy_codes.LEGACY["11ce282f6e591a47"]
     paths = record_files(ROOT / "figures" / "paper" / "records") + \
         record_files(ROOT / "figures" / "paper-fresh" / "records")
@@ -139,8 +139,7 @@ def test_the_legacy_table_code_holds_the_committed_records_columns():
             assert {c for c, _ in meta["columns"][table]} <= set(entry[table])
         assert legacy_codes.recorded_column_code(meta) == {
             t: {c: legacy_codes.superseded(v) for c, v in cols.items()} for t, cols in entry.items()}
-        for reads in (fig1.READS, fig2.READS, fig3.READS, fig4.READS, fig5.READS, fig6.READS,
-                      fig7.READS, preparation.READS):
+        for reads in [m.READS for m in build.MODULES.values()] + [preparation.READS]:
             record_columns(p, meta, reads)
     assert legacy_codes.recorded_column_code({"analysis_code": "0" * 16}) is None
     assert legacy_codes.recorded_column_code({"column_code": {"frames": {"z": "x"}}}) == \

@@ -17,9 +17,9 @@ there.
 
 The completeness test checks the contract of ``notebooks/``: one notebook per figure of the paper,
 each with a header naming its figure and the paper, a ``parameters`` cell, the tiltpile kernel and
-no stored outputs, and each exercised here. Every analysis parameter a figure depends on is a
-parameter of its notebook (and of the preparation study's) at its default value, and reaches the
-figure: a changed one is computed with and recorded in the JSON.
+no stored outputs, and each exercised here. Every analysis parameter is a parameter of every
+figure (tiltpile.figures.build) and of the preparation study's notebook at its default value, and
+reaches the figure: a changed one is computed with and recorded in the JSON.
 """
 
 from __future__ import annotations
@@ -136,9 +136,13 @@ def test_notebook_contract(nb):
     assert book.metadata["kernelspec"]["name"] == "tiltpile"
     assert all(not c.get("outputs") for c in book.cells if c.cell_type == "code"), \
         f"{nb.name}: store notebooks without outputs"
+    # the parameters cell restates no default: the figure's own are its module's (build.py)
+    assert names == {"data_dir", "preset", "figures_dir", "overrides"}, \
+        f"{nb.name}: the parameters cell holds the data, preset, output and overrides only"
     code = "\n".join(c.source for c in book.cells if c.cell_type == "code")
-    assert f"fig{k}" in code and "style.save(" in code
-    assert nb.stem in code, f"{nb.name} must save its figure as {nb.stem}"
+    assert f'build.given("fig{k}", overrides, globals())' in code and f'build.save("fig{k}"' in code
+    from tiltpile.figures import build
+    assert build.STEMS[f"fig{k}"] == nb.stem, f"{nb.name} must save its figure as {nb.stem}"
 
 
 # -- the analysis parameters reach the figures -------------------------------------------------------
@@ -156,10 +160,6 @@ def _parameters(nb: Path) -> dict:
     return out
 
 
-WITH_PREPARATION = NOTEBOOKS + [NOTEBOOK_DIR / "preparation.ipynb"]
-# the figures that read the per-run table (the large slide: analysis.run_table): Fig. 2 and the
-# preparation study, which is Fig. 2's computation on several ensembles
-RUN_TABLE_READERS = {"fig2_avalanche_criterion", "preparation"}
 
 
 def test_only_the_declared_figures_read_the_per_run_table():
@@ -174,33 +174,54 @@ def test_only_the_declared_figures_read_the_per_run_table():
     assert readers == {"fig2", "preparation"}
 
 
-@pytest.mark.parametrize("nb", WITH_PREPARATION, ids=[p.stem for p in WITH_PREPARATION])
-def test_every_analysis_parameter_is_a_notebook_parameter(nb):
-    """Every parameter of the tables (all figures read them) and, for the figures that read the
-    per-run table, its parameters too, declared at the analysis default and passed on; and every
-    parameter of the cell is used by the notebook's code."""
-    from tiltpile.analysis import DEFAULT_PARAMS, observables
+def test_every_analysis_parameter_is_a_figure_parameter():
+    """Every figure takes every analysis parameter of the tables (and Fig. 2 the per-run
+    table's) at the analysis default, and its own at its module's ``compute`` defaults; a name
+    given twice is the analysis' (build.py)."""
+    import inspect
+
+    from tiltpile.analysis import DEFAULT_PARAMS
+    from tiltpile.figures import build
+
+    from tiltpile.analysis.observables import RUN_TABLE_PARAMS
+
+    for name, mod in build.MODULES.items():
+        params = build.parameters(name)
+        # the per-run table's parameters are Fig. 2's only: NB="-p slide_ke ..." changes no other
+        runs = name == "fig2"
+        want = {k: v for k, v in DEFAULT_PARAMS.items() if runs or k not in RUN_TABLE_PARAMS}
+        assert {k: params[k] for k in want} == want and (runs or not set(RUN_TABLE_PARAMS) & set(params))
+        sig = inspect.signature(mod.compute).parameters
+        for k, v in build.figure_parameters(name).items():
+            assert sig[k].default == v and k not in DEFAULT_PARAMS
+    with pytest.raises(ValueError, match="epss: not a parameter of fig4"):
+        build.given("fig4", {"epss": 0.01})
+    with pytest.raises(ValueError, match="cutoff must be in"):
+        build.given("fig4", {"cutoff": 2.0})
+    # what papermill injects into a notebook's globals counts, an explicit override wins
+    got = build.given("fig4", {"z_bin": 0.2}, {"eps": 0.01, "z_bin": 0.5, "data_dir": "x"})
+    assert (got["eps"], got["z_bin"], "data_dir" in got) == (0.01, 0.2, False)
+
+
+def test_the_preparation_notebook_passes_every_analysis_parameter():
+    """The preparation study's notebook (not a figure of build.py) declares every analysis
+    parameter at its default and passes each on."""
+    from tiltpile.analysis import DEFAULT_PARAMS
 
     import papermill
 
+    nb = NOTEBOOK_DIR / "preparation.ipynb"
     params = _parameters(nb)
     assert list(papermill.inspect_notebook(str(nb))) == list(params), \
         f"{nb.name}: papermill does not read every parameter (one '=' per line, comments included)"
-    wanted = {k for k in DEFAULT_PARAMS if k not in observables.RUN_TABLE_PARAMS}
-    if nb.stem in RUN_TABLE_READERS:
-        wanted |= set(observables.RUN_TABLE_PARAMS)
-    missing = sorted(wanted - set(params))
-    assert not missing, f"{nb.name} does not pass {missing} to the analysis"
-    for k in wanted:
+    for k in DEFAULT_PARAMS:
         assert params[k] == DEFAULT_PARAMS[k] and type(params[k]) is type(DEFAULT_PARAMS[k]), \
             f"{nb.name}: {k} = {params[k]!r}, the analysis default is {DEFAULT_PARAMS[k]!r}"
     book = nbformat.read(nb, as_version=4)
     code = "\n".join(c.source for c in book.cells
                      if c.cell_type == "code" and "parameters" not in c.get("metadata", {}).get("tags", []))
-    for k in sorted(wanted):
+    for k in sorted(DEFAULT_PARAMS):
         assert re.search(rf"\b{k}={k}\b", code), f"{nb.name} declares {k} but does not pass it on"
-    unused = [k for k in params if not re.search(rf"\b{k}\b", code)]
-    assert not unused, f"{nb.name}: parameters its code never reads: {unused}"
 
 
 @pytest.mark.slow

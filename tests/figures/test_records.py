@@ -17,13 +17,13 @@ import pandas as pd
 import pytest
 from makehelpers import MAKE_ENV
 
-from tiltpile.figures import data, fig1, fig2, fig3, fig4, fig5, fig6, fig7, snapshot, style
+from tiltpile.figures import build, data, fig2, fig3, fig4, fig5, snapshot, style
 from tiltpile.figures.records import (DROPPED_CLUSTER_COLUMNS, picture_frames, write_record_of,
                                       write_records)
 from tiltpile.record import RecordError, read_meta, read_record, record_files, write_record
 
 ROOT = Path(__file__).resolve().parents[2]
-FIGURES = (fig1, fig2, fig3, fig4, fig5, fig6, fig7)
+FIGURES = tuple(build.MODULES.values())     # every figure
 
 
 def _cli(*args) -> int:

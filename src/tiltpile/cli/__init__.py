@@ -19,6 +19,7 @@ and the docs) and ``import_`` (``tiltpile import``). docs/cli.md gives every com
 ``solver_study``: ``tiltpile solver-study``.
 ``stiffness_study``: ``tiltpile stiffness-study``.
 ``config``: ``tiltpile config`` (every configuration key, from ``config.describe_keys``).
+``figure``: ``tiltpile figure NAME DATA`` (one figure from any data, ``figures.build``).
 """
 
 from __future__ import annotations
@@ -32,7 +33,7 @@ from tiltpile import config as cfgmod
 
 COMMANDS = ("simulate", "dem", "ensemble", "observables", "verify", "report", "bench", "info", "export",
             "movie", "repose", "zcount", "record", "same-piles", "study", "definitions", "docs",
-            "solver-study", "stiffness-study", "import", "config")
+            "solver-study", "stiffness-study", "import", "config", "figure")
 
 
 def build_parser() -> argparse.ArgumentParser:

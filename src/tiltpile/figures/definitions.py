@@ -94,7 +94,7 @@ def definitions(g: float, notebooks_dir="notebooks") -> list[dict]:
     """The definitions of the study (module docstring, step 2) at the fitted gap ``g`` (d): dicts
     key, label, what (one line), params (analysis parameters), notebook (other notebook
     parameters)."""
-    from .same_piles import _notebook_cells
+    from . import build
 
     def gap(x):
         return f"gap:{_round(x)}"
@@ -120,12 +120,10 @@ def definitions(g: float, notebooks_dir="notebooks") -> list[dict]:
          "params": {"contact_rule": gap(g), "lost_rule": "force", "frame_stride": 2},
          "notebook": {}, "what": "the mixed rule on every second stored frame"},
     ]
-    params, _ = _notebook_cells("fig3_clusters_failure", notebooks_dir)
-    ns: dict = {}
-    exec(compile(params, "fig3:parameters", "exec"), ns)
-    if "peak_rule" in ns:
+    fig3 = build.figure_parameters("fig3")
+    if "peak_rule" in fig3:
         for rule, what in PEAK_RULES:
-            if rule != ns["peak_rule"]:
+            if rule != fig3["peak_rule"]:
                 out.append({"key": f"peaks-{rule}", "label": f"peaks: {rule}", "params": {},
                             "notebook": {"peak_rule": rule}, "what": what})
     return out
@@ -297,12 +295,10 @@ def compact_definition_records(base, root, only=None, progress: bool = True):
 
 
 def _declares(stem: str, params: dict, notebooks_dir) -> bool:
-    from .same_piles import _notebook_cells
+    """Whether the figure ``stem`` has any parameter of ``params``."""
+    from . import build
 
-    src, _ = _notebook_cells(stem, notebooks_dir)
-    ns: dict = {}
-    exec(compile(src, f"{stem}:parameters", "exec"), ns)
-    return any(k in ns for k in params)
+    return any(k in build.parameters(stem) for k in params)
 
 
 def write_study(doc: dict, path) -> Path:

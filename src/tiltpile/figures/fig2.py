@@ -75,6 +75,8 @@ READS = Reads("Fig. 2",
               clusters=())
 
 NAME = "fig2_avalanche_criterion"
+# the first large slide is read from the per-run table: its analysis parameters are this figure's
+READS_RUN_TABLE = True
 AVALANCHE_KE = SLIDE_KE.value    # m g d per mobile grain: the avalanche angle's threshold
 
 

@@ -128,7 +128,7 @@ def _at(df: pd.DataFrame, col: str, tau: int) -> float:
 
 
 def compute(ens, sample_seed: int | None = None, snapshot_offset_deg: float = SNAPSHOT_OFFSET_DEG,
-            failure_column: str = "n_lost", taus=range(-10, 11), enhancement_taus=range(0, 6),
+            failure_column: str = "n_lost", tau_max: int = 10, enhancement_tau_max: int = 5,
             fraction_bin_width: float = 0.05, min_failing: int = 5,
             orientation_min_size: int = 5, snapshot: bool = True,
             peak_rule: str = _st.DEFAULT_PEAK_RULE) -> tuple[dict, dict]:
@@ -136,8 +136,9 @@ def compute(ens, sample_seed: int | None = None, snapshot_offset_deg: float = SN
 
     sample_seed: run of the snapshot (None: the first run with an onset); snapshot_offset_deg:
     the snapshot is the quiet frame closest to theta_m - offset; failure_column: N^f of C(tau)
-    and of the enhancement ("n_lost" contacts or "n_failing" grains); taus: lags of C(tau);
-    enhancement_taus: lags of the failure enhancement after cluster peaks
+    and of the enhancement ("n_lost" contacts or "n_failing" grains); tau_max: C(tau) at lags
+    -tau_max..tau_max; enhancement_tau_max: the failure enhancement after cluster peaks at lags
+    0..enhancement_tau_max
     (:func:`tiltpile.analysis.failure_enhancement_ensemble`); fraction_bin_width, min_failing:
     binning of the spatial correlation (:func:`failure_in_clusters`); orientation_min_size:
     smallest cluster whose orientation enters the mean; snapshot: read the snapshot from the run
@@ -161,7 +162,7 @@ def compute(ens, sample_seed: int | None = None, snapshot_offset_deg: float = SN
       enhancement_tau0            failure rate just after cluster-size peaks (tau = 0: failure
                                   between the peak frame and the next) relative to the quiet
                                   mean, minus 1 (paper: ~ +40%)
-      enhancement_max, enhancement_argmax_tau   its maximum over enhancement_taus and where
+      enhancement_max, enhancement_argmax_tau   its maximum over those lags and where
       n_peaks                     cluster-size peaks entering enhancement_tau0
       peak_rule                   the peak_rule, written only when it is not the default
                                   ("sigma"), so that the default's numbers stay as they were
@@ -204,6 +205,7 @@ def compute(ens, sample_seed: int | None = None, snapshot_offset_deg: float = SN
 
     # temporal correlation
     alt = "n_failing" if failure_column == "n_lost" else "n_lost"
+    taus, enhancement_taus = range(-tau_max, tau_max + 1), range(0, enhancement_tau_max + 1)
     c = _st.correlation_function_ensemble(fr, a="largest_cluster", b=failure_column, taus=taus)
     c_alt = _st.correlation_function_ensemble(fr, a="largest_cluster", b=alt, taus=taus)
     tmax, cmax = _argmax_tau(c)

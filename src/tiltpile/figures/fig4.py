@@ -36,6 +36,8 @@ READS = Reads("Fig. 4",
               frames=("z", "n_m", "z_rest", "avalanching"),
               clusters=("avalanching", "size", "z", "n_m"))
 
+NAME = "fig4_cluster_isostaticity"
+
 D = 2                    # dimension
 Z_ISO_MU = D + 1         # isostatic z of mu = infinity frictional packings (paper Eq. 1)
 ON_LINE_TOL = 1e-9       # |delta z_gen| below this counts as "on" the marginal line

@@ -46,6 +46,8 @@ READS = Reads("Fig. 5",
               frames=("largest_cluster", "avalanching", "theta_to_onset"),
               clusters=("avalanching", "theta_to_onset", "size"))
 
+NAME = "fig5_cluster_sizes"
+
 XI_UNCONSTRAINED = 1e6   # a fitted xi above this (the fit's bound is 1e7) is "no visible cutoff"
 
 

@@ -64,6 +64,8 @@ READS = Reads("Fig. 6",
               frames=("z", "n_m", "avalanching"),
               clusters=("avalanching", "size", "z", "n_m", "n_unstable", "speed_max"))
 
+NAME = "fig6_cluster_stability"
+
 D = 2
 DZ_GLOBAL = 0.0                          # Eq. (1): z = z_iso^gen
 DZ_SINGLE_GRAIN = (D + 1) / 2 - (D + 1)  # z - 2 n_m / d >= (d + 1) / 2, i.e. -1.5 in 2D

@@ -18,7 +18,10 @@ which prints the parameters NOTEBOOK declares, as the YAML file papermill reads 
 (``--note``: a first comment line, e.g. the data directory, so that the file changes whenever
 anything make passes to the notebook does; make rebuilds a figure when its file changes).
 
-A notebook's parameters are the names of its ``parameters`` cell (``papermill.inspect_notebook``).
+A figure's notebook takes its figure's parameters (:func:`tiltpile.figures.build.parameters`:
+the analysis parameters and its module's ``compute`` keywords), given to it as one ``overrides``
+mapping, so that its parameters cell holds no copy of a default; another notebook's parameters
+are the names of its ``parameters`` cell (``papermill.inspect_notebook``).
 """
 
 from __future__ import annotations
@@ -75,11 +78,25 @@ def parse(args) -> dict:
     return out
 
 
+def _figure(notebook) -> str | None:
+    """The figure whose notebook ``notebook`` is (its short name), or None."""
+    from tiltpile.figures.build import STEMS
+
+    return next((short for short, stem in STEMS.items() if Path(notebook).stem == stem), None)
+
+
 def declared(notebook) -> list[str]:
-    """The names of ``notebook``'s parameters cell, in order."""
+    """The parameters ``notebook`` takes, in order: a figure's (module docstring), or the names
+    of its parameters cell."""
     import papermill
 
-    return list(papermill.inspect_notebook(str(notebook)))
+    cell = [n for n in papermill.inspect_notebook(str(notebook)) if n != "overrides"]
+    fig = _figure(notebook)
+    if fig is None:
+        return cell
+    from tiltpile.figures.build import parameters
+
+    return cell + [n for n in parameters(fig) if n not in cell]
 
 
 def check(notebooks, params: dict) -> None:
@@ -102,9 +119,13 @@ def check(notebooks, params: dict) -> None:
 
 
 def select(notebook, params: dict) -> dict:
-    """The parameters of ``params`` that ``notebook`` declares."""
+    """What papermill gives ``notebook`` of ``params``: those it declares, as ``overrides`` for a
+    figure's notebook."""
     mine = set(declared(notebook))
-    return {k: v for k, v in params.items() if k in mine}
+    chosen = {k: v for k, v in params.items() if k in mine}
+    if _figure(notebook) is None:
+        return chosen
+    return {"overrides": {k: v for k, v in chosen.items() if k not in MAKE_SETS}}
 
 
 def to_yaml(params: dict, note: str | None = None) -> str:

@@ -13,8 +13,8 @@ This study says whether the second setting may stand in for the first (``tiltpil
   difference per seed, and the mean difference with a BCa bootstrap interval over the seeds
   (:func:`tiltpile.analysis.stats.bootstrap_ci` of the per-seed differences);
 * **ensemble against ensemble** (:func:`ensemble_against_ensemble`): every scalar number of every
-  figure, computed as the figure's notebook computes it (:func:`figure_documents`: the
-  notebook's own parameters and code cells, without the plot), for both ensembles; its standard
+  figure, computed as the figure's notebook computes it (:func:`figure_documents`:
+  :func:`tiltpile.figures.build.document`, without the plot), for both ensembles; its standard
   error by the jackknife over runs (leave one run out, :func:`jackknife`; sqrt((n - 1) / n * sum (x_i -
   x)^2)); the shift in units of the combined error sqrt(se_ref^2 + se^2), as
   ``tiltpile.bench.guard`` measures settings, and the paired jackknife of the shift (the same
@@ -53,7 +53,7 @@ import pandas as pd
 from tiltpile import ensemble as _ensemble
 from tiltpile.analysis.stats import bootstrap_ci
 
-from . import data as _data
+from . import build as _build
 from . import style
 
 NAME = "same_piles"
@@ -61,9 +61,8 @@ NAME = "same_piles"
 #: (:func:`jackknife`): ~4500 units in the last place of a double, far below any run-to-run error
 ROUNDING = 1e-12
 # the figures' stems, as their notebooks are named (notebooks/<stem>.ipynb)
-FIGURES = ("fig1_isostaticity", "fig2_avalanche_criterion", "fig3_clusters_failure",
-           "fig4_cluster_isostaticity", "fig5_cluster_sizes", "fig6_cluster_stability",
-           "fig7_rigidity")
+#: the figures' stems, in order (every figure of tiltpile.figures.build)
+FIGURES = tuple(_build.STEMS.values())
 # the per-seed numbers compared pile against pile (columns of preparation.per_run_table)
 PER_SEED = ("theta_first_onset", "theta_first_slide", "n_onsets", "z_quiet", "n_m_quiet",
             "z_start", "theta_first_change", "phi_start", "fabric_start", "ke_quiet")
@@ -116,80 +115,17 @@ def subset(ens, seeds):
 # a figure's numbers as its notebook computes them
 
 
-def _notebook_cells(stem: str, notebooks_dir) -> tuple[str, list[str]]:
-    """The parameters cell and the other code cells of ``notebooks_dir/<stem>.ipynb`` that
-    compute (those drawing or saving the figure left out)."""
-    path = Path(notebooks_dir) / f"{stem}.ipynb"
-    if not path.is_file():
-        raise FileNotFoundError(f"{path}: no notebook for figure {stem}")
-    nb = json.loads(path.read_text())
-    params, cells = None, []
-    for c in nb["cells"]:
-        if c["cell_type"] != "code":
-            continue
-        src = "".join(c["source"])
-        if "parameters" in c.get("metadata", {}).get("tags", []):
-            params = src
-        elif ".plot(" not in src and "style.save(" not in src:
-            cells.append(src)
-    if params is None:
-        raise ValueError(f"{path}: no cell tagged 'parameters'")
-    return params, cells
-
-
-@contextlib.contextmanager
-def _given_ensemble(ens):
-    """``figures.data.load`` returns ``ens`` inside the block, described as the notebook's load
-    would describe it (``meta["analysis"]``); the notebook's analysis parameters must be the ones
-    ``ens`` was loaded with (else ValueError: its tables would be other ones). The columns the
-    notebook declares it reads (``reads``) must be in ``ens``'s tables (KeyError otherwise)."""
-    real = _data.load
-    held = _data.analysis_params(ens)
-
-    def load(data_dir, preset=None, reads=None, **params):
-        want = dict(held, **{k: v for k, v in params.items()})
-        if json.dumps(want, sort_keys=True, default=str) != json.dumps(held, sort_keys=True, default=str):
-            diff = sorted(k for k in params if json.dumps(params[k], default=str)
-                          != json.dumps(held.get(k), default=str))
-            raise ValueError(f"the notebook asks for analysis parameters {diff} other than the "
-                             "ensemble's tables were computed with")
-        if reads is not None:
-            for table, cols in (("frames", reads.frames), ("clusters", reads.clusters)):
-                missing = sorted(set(cols) - set(getattr(ens, table).columns))
-                if missing:
-                    raise KeyError(f"{reads.reader} reads {table} columns {missing}, which the "
-                                   "ensemble's tables lack")
-        # the description the notebook's own load would give (figures.data.load)
-        return replace(ens, meta=dict(ens.meta, analysis=_data.recorded_params(params)))
-
-    _data.load = load
-    try:
-        yield
-    finally:
-        _data.load = real
-
-
 def figure_documents(ens, stems=FIGURES, notebooks_dir="notebooks",
                      overrides: dict | None = None) -> dict[str, dict]:
-    """{stem: JSON document} of each figure on ``ens``, computed by the figure's notebook: its
-    parameters cell (the defaults ``make figures`` uses, with ``overrides`` of the parameters a
-    notebook declares applied, as ``NB="-p NAME VALUE"`` would) and its code cells, the ensemble
-    given in place of the one the notebook loads, without drawing. Each document is what the
-    figure's JSON would hold (``style.save``: ``figure``, the ensemble's description,
-    ``numbers``)."""
-    out = {}
-    for stem in stems:
-        params, cells = _notebook_cells(stem, notebooks_dir)
-        ns: dict = {}
-        exec(compile(params, f"{stem}:parameters", "exec"), ns)
-        ns.update({k: v for k, v in (overrides or {}).items() if k in ns})
-        with _given_ensemble(ens):
-            for k, src in enumerate(cells):
-                exec(compile(src, f"{stem}:cell{k}", "exec"), ns)
-        if "numbers" not in ns or "ens" not in ns:
-            raise ValueError(f"notebook {stem} computes no `numbers` from an `ens`")
-        out[stem] = document(ns["ens"].meta, stem, ns["numbers"])
-    return out
+    """{stem: JSON document} of each figure on ``ens``, as its notebook and ``make figures``
+    compute it (:func:`tiltpile.figures.build.document`: the figure's parameters at their
+    defaults, with ``overrides`` of those it has applied, as ``NB="-p NAME VALUE"`` would),
+    without drawing. Each document is what the figure's JSON would hold (``style.save``:
+    ``figure``, the ensemble's description, ``numbers``). ``notebooks_dir`` is not read (the
+    notebooks compute nothing of their own); it stays for the callers that pass it."""
+    from . import build
+
+    return {stem: build.document(ens, stem, overrides) for stem in stems}
 
 
 @contextlib.contextmanager
