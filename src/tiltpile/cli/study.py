@@ -45,7 +45,7 @@ def add_parser(sub) -> None:
                    help="the configuration key varied, e.g. scene.mu")
     p.add_argument("--values", required=True, nargs="+", metavar="V",
                    help="its values (TOML syntax, as --set), at least two, e.g. 0.2 0.5 1.0")
-    p.add_argument("--preset", required=True, choices=cfgmod.PRESETS,
+    p.add_argument("--preset", required=True, choices=cfgmod.ALL_PRESET_NAMES,
                    help="the configuration every value starts from")
     p.add_argument("--runs", type=int, required=True, metavar="M",
                    help="runs (seeds 0..M-1) per value")

@@ -9,7 +9,8 @@ A block in a Markdown file::
 
 ``tiltpile docs`` (``make docs``, also run by ``make reports``) re-renders every block of the
 files in ``FILES`` from the templates ``templates/<NAME>.md.j2`` with the main report's context
-(:func:`tiltpile.report.main.context`) and the presets' table (:func:`presets`); ``--check``
+(:func:`tiltpile.report.main.context`) and the presets' tables (:func:`presets`, the named
+ones; :func:`preset_axes`, every triple of the axes); ``--check``
 changes nothing and exits 1 when a block is stale (the freshness test runs it). A block name
 with no template, or a marker without its end, is an error naming the file and the line.
 
@@ -43,21 +44,29 @@ class BlockError(ValueError):
     """A document's generated block is malformed or names no template."""
 
 
-def presets(root="figures") -> list[dict]:
-    """One row per preset: its name, grains, history, engine, the runs of its ``make figures``,
-    and its measured cost per run where a committed figure document holds it: the sweeps (the
-    document's ``cost``) and the wall time (its runs' committed records, :mod:`.wall`; None
-    without them)."""
+def _measured(p: cfgmod.Preset, root) -> dict:
+    """The measured cost per run of preset ``p`` where a committed figure document holds it (its
+    own Fig. 2's, or a pile-against-pile study's side of it): the document's ``cost`` (sweeps,
+    steps) with its runs' wall time from the committed records (:mod:`.wall`); {} without one."""
     from . import wall
 
+    cost = {}
+    base = Path(root).parent / p.figures
+    for f in sorted(base.glob("fig2_*.json")) + sorted(base.glob(f"same-piles/{p.name}/fig2_*.json")):
+        cost = wall.load(f).get("cost") or {}
+    return cost
+
+
+def presets(root="figures") -> list[dict]:
+    """One row per named preset: its name, grains, history, engine, the runs of its ``make
+    figures``, and its measured cost per run where a committed figure document holds it: the
+    sweeps (the document's ``cost``) and the wall time (its runs' committed records, :mod:`.wall`;
+    None without them)."""
     out = []
     for p in cfgmod.PRESET_TABLE:
         cfg = cfgmod.load(p.name)
         label = cfgmod.history_label(cfg.protocol.pretilt_deg) if cfg.protocol.pretilt_deg else "fresh"
-        cost = {}
-        base = Path(root).parent / p.figures
-        for f in sorted(base.glob("fig2_*.json")) + sorted(base.glob(f"same-piles/{p.name}/fig2_*.json")):
-            cost = wall.load(f).get("cost") or {}
+        cost = _measured(p, root)
         step = cfg.protocol.pretilt_per_step_deg or cfg.protocol.tilt_per_step_deg
         rate = step / cfg.protocol.tilt_per_step_deg
         out.append({"name": p.name, "grains": cfg.scene.n, "runs": p.runs,
@@ -67,6 +76,35 @@ def presets(root="figures") -> list[dict]:
                     "label": label, "engine": "DEM" if cfg.dem is not None else "CD",
                     "sweeps": cost.get("sweeps_per_run"), "hours": (cost.get("seconds_per_run") or 0) / 3600
                     or None, "figures": p.figures})
+    return out
+
+
+def preset_axes(root="figures") -> list[dict]:
+    """One row per preset, every triple of the axes (``config.ALL_PRESETS``), in the axes' order
+    (scale, engine, history): ``name``, ``scale``, ``history``, ``engine`` (the axes' values),
+    ``history_label`` (``config.History.label``), ``alias`` (a named preset), ``use``,
+    ``grains``, ``runs`` and ``figures`` of its ``make figures``, ``steps_history`` and
+    ``steps_ramp`` (``config.tilt_steps``: at most, of solver.dt), and its measured cost per run
+    where committed figures hold it (:func:`_measured`): ``sweeps``, ``dem_steps`` (a DEM run's
+    steps) and ``hours`` (None without)."""
+    axes = cfgmod.PRESET_AXES
+    order = {(s, e, h): k for k, (s, e, h) in enumerate(
+        (s, e, h) for s in axes["scale"] for e in axes["engine"] for h in axes["history"])}
+    labels = {h.name: h.label for h in cfgmod.PRESET_HISTORIES}
+    named = set(cfgmod.PRESETS)
+    out = []
+    for p in sorted(cfgmod.ALL_PRESETS, key=lambda p: order[(p.scale, p.engine, p.history)]):
+        cfg = cfgmod.load(p.name)
+        steps = cfgmod.tilt_steps(cfg)
+        cost = _measured(p, root)
+        dem = p.engine == "dem"
+        out.append({"name": p.name, "scale": p.scale, "history": p.history, "engine": p.engine,
+                    "history_label": labels[p.history], "alias": p.name in named, "use": p.use,
+                    "grains": cfg.scene.n, "runs": p.runs, "figures": p.figures,
+                    "steps_history": steps["history"], "steps_ramp": steps["ramp"],
+                    "sweeps": None if dem else cost.get("sweeps_per_run"),
+                    "dem_steps": cost.get("steps_per_run") if dem else None,
+                    "hours": (cost.get("seconds_per_run") or 0) / 3600 or None})
     return out
 
 
@@ -301,7 +339,8 @@ def render_all(root="figures") -> dict[str, str]:
     from .main import context
 
     env = _environment()
-    ctx = {**context(root), "presets": presets(root), "figs": figure_numbers(root),
+    ctx = {**context(root), "presets": presets(root), "preset_axes": preset_axes(root),
+           "figs": figure_numbers(root),
            "meta": figure_meta(root), "derived": derived(root), "same_piles": same_piles(root),
            "preparation": preparation(root), "definitions_study": definitions(root),
            # docs/cli.md's keys and the presets' pile depths (tiltpile config prints the same)
