@@ -1,11 +1,13 @@
 """Measurements: what the simulator costs and how accurate it is. The results, dated, are in
 ``notes/performance-log.md`` (summarized in ``docs/performance.md``); ``make bench`` regenerates ``figures/performance/``.
 
-Every module runs as ``python -m tiltpile.bench.<name>`` through ``main(argv)`` and measures
-nothing when imported (``python -m tiltpile.bench`` lists them, from the package itself):
+This package sits beside ``tiltpile``, in the repository, and is not installed with it: it
+imports the installed ``tiltpile`` and runs from the repository's root. Every module runs as
+``python -m benchmarks.<name>`` through ``main(argv)`` and measures nothing when imported
+(``python -m benchmarks`` lists them, from the package itself):
 
 ``pile``               the settled piles every measurement starts from, cached in data/bench
-``timing``             ``tiltpile bench``: the cost of a step on a settled pile of n grains
+``timing``             the cost of a step on a settled pile of n grains
 ``chart``              ``make bench``: the speed x accuracy chart (``spec``, ``accuracy``,
                        ``scaling``, ``plots``), written to figures/performance/
 ``solver_micro``       ns per contact update of each sweep order, one process
@@ -23,18 +25,18 @@ nothing when imported (``python -m tiltpile.bench`` lists them, from the package
 
 These are the tools in use. The finished studies (``coarse``, ``settle``, ``flow_caps``,
 ``precursor_caps``, ``store_filters``, ``dask_overhead``, ``ke_threshold``) left the package
-after f4398d3, which holds them with their tests; docs/performance.md ("How to measure") says
+(then ``tiltpile.bench``) after f4398d3, which holds them with their tests; docs/performance.md ("How to measure") says
 how to run one there, and each entry of notes/performance-log.md gives its command.
 (``tests/bench/test_listing.py`` keeps this table equal to the package's modules.)
 
-Measurement code sits beside the command line: it imports ``config``, ``sim``, ``store`` and
-``analysis``, never ``figures`` or ``cli`` (``tests/test_layers.py``).
+Measurement code imports ``tiltpile``'s ``config``, ``sim``, ``store`` and ``analysis``, never
+its ``figures`` or ``cli``; nothing in ``tiltpile`` imports it (``tests/test_architecture.py``).
 """
 
 
 def tools() -> list[str]:
-    """The modules and subpackages of ``tiltpile.bench`` that run as ``python -m``, by name (what
-    ``python -m tiltpile.bench`` lists): read from the package's directory, so none is left out."""
+    """The modules and subpackages of ``benchmarks`` that run as ``python -m``, by name (what
+    ``python -m benchmarks`` lists): read from the package's directory, so none is left out."""
     import pkgutil
 
     return sorted(m.name for m in pkgutil.iter_modules(__path__) if not m.name.startswith("_"))

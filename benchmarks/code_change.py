@@ -8,7 +8,7 @@ parameter at its default, a function moved, a loop rewritten), this tool shows i
 the entries of :data:`tiltpile.analysis.legacy_codes.SUPERSEDED` ({old code: new code}) that let
 the records keep serving the column::
 
-    python -m tiltpile.bench.code_change OLD_COMMIT RUN_FILE [RUN_FILE ...] [--params JSON ...]
+    python -m benchmarks.code_change OLD_COMMIT RUN_FILE [RUN_FILE ...] [--params JSON ...]
 
 The older commit's ``src/`` is taken from git (``git archive``) into a temporary directory and
 run in a subprocess with the same interpreter; both compute
@@ -97,7 +97,7 @@ def compare(old: dict, new: dict, old_codes: dict, new_codes: dict) -> dict:
 
 
 def main(argv=None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m tiltpile.bench.code_change",
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.code_change",
                                  description=__doc__.splitlines()[0])
     ap.add_argument("old", help="the older commit (anything git rev-parse takes)")
     ap.add_argument("runs", nargs="+", help="run files (run_*.h5)")

@@ -1,7 +1,7 @@
 """Does a setting change the physics? The onset angle and the quiet contact network of ensembles
 that differ in one setting, against the first.
 
-Usage: python -m tiltpile.bench.compare_ensembles DIR [DIR ...]
+Usage: python -m benchmarks.compare_ensembles DIR [DIR ...]
   DIR  an ensemble directory (``tiltpile ensemble ... --out DIR``); its observables are computed
        if missing (``tiltpile observables``). The first DIR is the reference.
 
@@ -121,7 +121,7 @@ def compare(dirs) -> list[dict]:
 
 
 def main(argv=None) -> list[dict]:
-    ap = argparse.ArgumentParser(prog="python -m tiltpile.bench.compare_ensembles",
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.compare_ensembles",
                                  description=__doc__.splitlines()[0])
     ap.add_argument("dirs", nargs="+", help="ensemble directories; the first is the reference")
     a = ap.parse_args(argv)

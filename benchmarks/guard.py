@@ -1,11 +1,11 @@
 """The accuracy guard of a cheaper setting: what each ensemble costs against how far it moves the
 figure numbers, in units of their statistical error.
 
-Usage: python -m tiltpile.bench.guard REF DIR [DIR ...] --out OUTDIR
+Usage: python -m benchmarks.guard REF DIR [DIR ...] --out OUTDIR
   REF, DIR  ensemble directories (``tiltpile ensemble ... --out DIR``); REF is the reference
   OUTDIR    where ``guard.csv`` and ``guard.png`` go (e.g. figures/performance)
 
-Per ensemble, from :func:`tiltpile.bench.compare_ensembles.compare`: the setting (configuration
+Per ensemble, from :func:`benchmarks.compare_ensembles.compare`: the setting (configuration
 keys that differ from REF's), and per figure number (theta_m, <z>, <n_m> and the fraction of
 quiet frames below the marginal line, delta) its mean over the runs, standard error, shift from
 REF, the shift in units of the combined standard error sqrt(sem^2 + sem_ref^2) (``*_sigma``) and
@@ -27,7 +27,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from tiltpile.bench.compare_ensembles import METRICS, compare
+from benchmarks.compare_ensembles import METRICS, compare
 
 LABELS = {"theta_m": "first onset theta_m", "z_quiet": "<z> quiet", "n_m_quiet": "<n_m> quiet",
           "below_quiet": "quiet frames below z = 3 + n_m", "delta": "cluster exponent delta"}
@@ -95,7 +95,7 @@ def plot(t: pd.DataFrame, path: Path) -> None:
 
 
 def main(argv=None) -> pd.DataFrame:
-    ap = argparse.ArgumentParser(prog="python -m tiltpile.bench.guard", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.guard", description=__doc__.splitlines()[0])
     ap.add_argument("dirs", nargs="+", help="ensemble directories; the first is the reference")
     ap.add_argument("--out", type=Path, required=True, help="directory for guard.csv and guard.png")
     a = ap.parse_args(argv)

@@ -1,6 +1,6 @@
 """How often a SIGKILL leaves a run resumable: kill one run at random moments.
 
-Usage: python -m tiltpile.bench.kill_resume [N] [--pattern smoke|paper] [--min-frames K]
+Usage: python -m benchmarks.kill_resume [N] [--pattern smoke|paper] [--min-frames K]
                                             [--max-delay S] [--seed R]
                                             [--preset P] [--set section.key=value ...]
   N             kills (default 50)
@@ -48,7 +48,7 @@ SMALL = ["scene.n=60", "scene.box_length=10.0", "protocol.theta_max_deg=2.0", "p
 _CHILD = ("import sys; from tiltpile import config; from tiltpile.runner import simulate; "
           "cfg = config.load(sys.argv[1], overrides=sys.argv[3:]); "
           "simulate(cfg, 0, sys.argv[2], progress=False, resume=False)")
-_PAPER_CHILD = ("import sys; from tiltpile.bench.kill_resume import paper_pattern; "
+_PAPER_CHILD = ("import sys; from benchmarks.kill_resume import paper_pattern; "
                 "paper_pattern(sys.argv[1], int(sys.argv[2]))")
 
 # The paper preset's write pattern (measured on the paper runs): grains with the bottom row,
@@ -141,7 +141,12 @@ def kill_once(preset: str, overrides: list[str], min_frames: int, delay: float, 
     else:
         config_hash = config.load(preset, overrides=overrides).hash()
         argv = [sys.executable, "-c", _CHILD, preset, str(out), *overrides]
-    proc = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
+    # the child imports this package: the repository's root (benchmarks/'s parent) on its path
+    root = str(Path(__file__).resolve().parents[1])
+    env = {**os.environ, "PYTHONPATH": os.pathsep.join(
+        [root] + [p for p in os.environ.get("PYTHONPATH", "").split(os.pathsep) if p])}
+    proc = subprocess.Popen(argv, start_new_session=True, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE,
+                            env=env)
     try:
         while proc.poll() is None and _checkpoint_frames(checkpoint_path(out)) < min_frames:
             time.sleep(0.002)
@@ -192,7 +197,7 @@ def study(n: int, preset: str = "smoke", overrides=None, min_frames: int = 1, ma
 
 
 def main(argv=None) -> Counter:
-    ap = argparse.ArgumentParser(prog="python -m tiltpile.bench.kill_resume", description=__doc__.splitlines()[0])
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.kill_resume", description=__doc__.splitlines()[0])
     ap.add_argument("n", nargs="?", type=int, default=50, help="kills (default 50)")
     ap.add_argument("--min-frames", type=int, default=1)
     ap.add_argument("--max-delay", type=float, default=None)

@@ -1,7 +1,7 @@
 """The machine code numba compiles for the simulator's kernels, normalized, so that two versions
 of ``sim/`` can be compared without a quiet core: identical code runs at identical speed.
 
-Usage: ``python -m tiltpile.bench.machine_code OUT`` writes the x86-64 assembly of every compiled
+Usage: ``python -m benchmarks.machine_code OUT`` writes the x86-64 assembly of every compiled
 signature of every kernel of ``sim/solver.py`` and ``sim/step.py`` after a short tilt of a smoke
 pile (so every signature the presets use is compiled) to OUT, one ``=== module.kernel
 signature`` header per listing, and prints one line per kernel. It compiles everything afresh,
@@ -54,7 +54,7 @@ def listings(n_steps: int = 30) -> list[tuple[str, str]]:
     Only kernels this process compiled are listed: one loaded whole from numba's cache carries
     its callees' code without compiling them. ``main`` therefore runs it in a child process with
     an empty cache directory of its own."""
-    from tiltpile.bench.pile import bench_config, settled_pile
+    from benchmarks.pile import bench_config, settled_pile
     from tiltpile.sim import solver, step
 
     cfg = bench_config(60, "smoke", None, ())
@@ -72,14 +72,14 @@ def listings(n_steps: int = 30) -> list[tuple[str, str]]:
 
 
 def main(argv=None) -> int:
-    p = argparse.ArgumentParser(prog="python -m tiltpile.bench.machine_code",
+    p = argparse.ArgumentParser(prog="python -m benchmarks.machine_code",
                                 description=__doc__.split("\n\n")[0])
     p.add_argument("out", help="the file the listings are written to")
     args = p.parse_args(argv)
     if not os.environ.get(_CHILD):   # a fresh numba cache, so that every kernel is compiled
         with tempfile.TemporaryDirectory(prefix="tiltpile-machine-code-") as cache:
             env = dict(os.environ, NUMBA_CACHE_DIR=cache, **{_CHILD: "1"})
-            return subprocess.run([sys.executable, "-m", "tiltpile.bench.machine_code",
+            return subprocess.run([sys.executable, "-m", "benchmarks.machine_code",
                                    args.out], env=env).returncode
     items = listings()
     with open(args.out, "w") as f:

@@ -58,11 +58,11 @@ def settled_pile(cfg: cfgmod.Config, seed: int, progress: bool = True, cache: Pa
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m tiltpile.bench.pile N [--preset paper-fresh] [--seed 0]``: deposit and cache a bench pile."""
+    """``python -m benchmarks.pile N [--preset paper-fresh] [--seed 0]``: deposit and cache a bench pile."""
     import argparse
     import sys
 
-    ap = argparse.ArgumentParser(prog="python -m tiltpile.bench.pile", description=main.__doc__)
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.pile", description=main.__doc__)
     ap.add_argument("n", type=int, help="mobile grains")
     ap.add_argument("--preset", choices=cfgmod.PRESETS, default="paper-fresh",
                     help="base configuration of the pile (default: paper-fresh)")

@@ -1,6 +1,6 @@
 """n_m against the solver, frame by frame: one step re-solved at each sweep cap, order and start.
 
-Usage: python -m tiltpile.bench.solver_frames [--run RUN.h5 --frames K,...] [--bench N:DEG[:capped] ...]
+Usage: python -m benchmarks.solver_frames [--run RUN.h5 --frames K,...] [--bench N:DEG[:capped] ...]
        [--caps 300,1000,3000,10000,100000] [--orders forward,interleaved,alternating,random]
        [--starts warm,cold] [--out DIR]
 
@@ -157,7 +157,7 @@ def parse_bench(spec: str) -> tuple[int, float, bool]:
 def state_from_bench(n: int, deg: float, capped: bool = False, *, seed: int = 0,
                      preset: str = "paper-fresh", cache=None, progress: bool = False) -> StepState:
     """The start of a step of a bench pile of ``n`` grains tilted to ``deg`` (module docstring)."""
-    from tiltpile.bench import pile as bench
+    from benchmarks import pile as bench
 
     cfg = bench.bench_config(n, preset)
     kw = {} if cache is None else {"cache": Path(cache)}
@@ -424,7 +424,7 @@ def _names(text: str, what: str, allowed) -> list[str]:
 
 def parse(argv) -> dict:
     """The command line as checked values; InputError (one line) for anything wrong."""
-    ap = _Parser(prog="python -m tiltpile.bench.solver_frames", description=__doc__.splitlines()[0])
+    ap = _Parser(prog="python -m benchmarks.solver_frames", description=__doc__.splitlines()[0])
     ap.add_argument("--run", type=Path, help="a finished CD run file")
     ap.add_argument("--frames", help="with --run: the frames whose step to re-solve, e.g. 140,294")
     ap.add_argument("--bench", action="append", default=[], metavar="N:DEG[:capped]",
@@ -458,7 +458,7 @@ def parse(argv) -> dict:
 
 def main(argv: list[str] | None = None) -> int:
     argv = sys.argv[1:] if argv is None else list(argv)
-    prog = "python -m tiltpile.bench.solver_frames"
+    prog = "python -m benchmarks.solver_frames"
     try:
         p = parse(argv)
         states = [state_from_run(p["run"], k) for k in p["frames"]]

@@ -1,8 +1,8 @@
 """Microbench of the NLGS sweep: ns per contact update at a fixed sweep count, all in one process.
 
-Usage: python -m tiltpile.bench.solver_micro N SWEEPS REPEATS
+Usage: python -m benchmarks.solver_micro N SWEEPS REPEATS
 
-State: the bench pile of :func:`tiltpile.bench.pile.settled_pile` (cached, deposited if
+State: the bench pile of :func:`benchmarks.pile.settled_pile` (cached, deposited if
 missing), tilted 20 steps. Each variant runs ``solver.nlgs`` for exactly SWEEPS sweeps (tol 0)
 from copies of that state, REPEATS times, round-robin over the variants so that a slow spell of
 the machine falls on all of them; reported: median wall and thread-CPU ns per contact update
@@ -24,7 +24,7 @@ def measure(n: int, sweeps: int, reps: int) -> dict:
     the number of contacts, on the bench pile of ``n`` grains (module docstring)."""
     import numba
 
-    from tiltpile.bench.pile import bench_config, settled_pile
+    from benchmarks.pile import bench_config, settled_pile
     from tiltpile.sim import detect, solver
 
     cfg = bench_config(n)
@@ -64,7 +64,7 @@ def measure(n: int, sweeps: int, reps: int) -> dict:
 
 
 def main(argv: list[str] | None = None) -> int:
-    ap = argparse.ArgumentParser(prog="python -m tiltpile.bench.solver_micro",
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.solver_micro",
                                  description=__doc__.splitlines()[0])
     ap.add_argument("n", type=int, help="grains of the bench pile")
     ap.add_argument("sweeps", type=int, help="sweeps per timing")

@@ -1,6 +1,6 @@
 """Sweeps per step, cost and true error of NLGS variants on a settled bench pile while tilting.
 
-Usage: python -m tiltpile.bench.solver_variants N STEPS [EVAL_EVERY] [variant ...]
+Usage: python -m benchmarks.solver_variants N STEPS [EVAL_EVERY] [variant ...]
   variant = sweep:relax[:tol[:slop]], e.g. random:1  forward:1.6  forward:1.6:3e-7
   random:1:1e-6:0 (plain random NLGS with the plain gap term: the speed reference)
   pile_slop=S (anywhere among the variants): deposit the pile with solver.overlap_slop = S
@@ -31,7 +31,7 @@ DEFAULT_VARIANTS = ("random:1", "forward:1", "alternating:1", "forward:1.3", "fo
 
 def main(argv: list[str] | None = None) -> int:
     """Parse ``N STEPS [EVAL_EVERY] [variant ...]`` (module docstring), measure, print one row per variant."""
-    from tiltpile.bench import pile as bench
+    from benchmarks import pile as bench
     from tiltpile.sim import solver
 
     argv = sys.argv[1:] if argv is None else list(argv)

@@ -3,10 +3,8 @@ and every file the page names exists, the recipes' file lists with the names the
 
 A package's modules are its ``.py`` files (``__init__`` and ``__main__`` aside) and its
 subpackages, read from the source tree, so that a module added or removed is seen here. The
-measurement package ``bench`` names its live tools; any other module of it must be a finished
-study of the few this test knows (imported by nothing but other studies, its measurements in
-notes/performance-log.md), so the check holds whether or not the finished studies are still in
-the package.
+measurements, ``benchmarks/`` beside the package, name every module as a tool in their table,
+and the package never imports them (they are not installed with it).
 """
 
 from __future__ import annotations
@@ -22,6 +20,8 @@ ROOT = Path(__file__).resolve().parents[1]
 PKG = ROOT / "src" / "tiltpile"
 MAP = ROOT / "docs" / "architecture.md"
 PACKAGES = sorted(p.parent for p in PKG.rglob("__init__.py") if "__pycache__" not in p.parts)
+BENCH = ROOT / "benchmarks"   # the measurements, beside the package (not installed)
+BENCH_PACKAGES = sorted(p.parent for p in BENCH.rglob("__init__.py") if "__pycache__" not in p.parts)
 
 
 def modules_of(pkg: Path) -> list[str]:
@@ -42,69 +42,46 @@ def names(doc: str, name: str) -> bool:
 
 
 def _dotted(pkg: Path) -> str:
-    return ".".join(pkg.relative_to(PKG.parent).parts)
+    base = BENCH.parent if pkg.is_relative_to(BENCH) else PKG.parent
+    return ".".join(pkg.relative_to(base).parts)
 
 
-@pytest.mark.parametrize("pkg", [p for p in PACKAGES if p.name != "bench"], ids=_dotted)
+@pytest.mark.parametrize("pkg", PACKAGES + BENCH_PACKAGES, ids=_dotted)
 def test_every_package_docstring_names_its_modules(pkg):
     doc = docstring(pkg)
     missing = [m for m in modules_of(pkg) if not names(doc, m)]
-    assert not missing, f"{_dotted(pkg)}'s docstring (src/{pkg.relative_to(PKG.parent)}/__init__.py) " \
+    assert not missing, f"{_dotted(pkg)}'s docstring ({pkg.relative_to(ROOT)}/__init__.py) " \
                         f"does not name {missing}"
 
 
-# finished studies still in the package, which need not be named as tools: none since they left
-# it (issue 54 item 3, docs/performance.md); every module of bench is a tool the docstring names
-FINISHED_STUDIES: set[str] = set()
-
-
 def _bench_tools(doc: str) -> list[str]:
-    """The modules the bench docstring's table names: the ``name`` that starts a line."""
+    """The modules the benchmarks docstring's table names: the ``name`` that starts a line."""
     return re.findall(r"^``(\w+)``\s{2,}\S", doc, flags=re.M)
 
 
-def test_bench_names_its_tools_and_the_rest_are_finished_studies():
-    pkg = PKG / "bench"
-    mods = set(modules_of(pkg))
-    tools = _bench_tools(docstring(pkg))
-    assert tools, "the bench docstring names no tool"
-    assert set(tools) <= mods, f"the bench docstring names tools that are not there: {sorted(set(tools) - mods)}"
-    studies = mods - set(tools)
-    assert studies <= FINISHED_STUDIES, (f"the bench docstring does not name {sorted(studies - FINISHED_STUDIES)}: "
-                                         "a live tool is named in its table")
-    log = (ROOT / "notes" / "performance-log.md").read_text()
-
-    def study_of(module: str) -> str | None:
-        parts = module.split(".")
-        return parts[2] if len(parts) > 2 and parts[:2] == ["tiltpile", "bench"] \
-            and parts[2] in studies else None
-
-    for s in sorted(studies):
-        target = f"tiltpile.bench.{s}"
-        importers = {m for m in MODULES
-                     if any(t == target or t.startswith(target + ".") for t, _ in imports_of(m))}
-        outside = sorted(m for m in importers if study_of(m) is None)
-        assert not outside, (f"bench.{s} is not named as a tool in the bench docstring, yet "
-                             f"{outside} import it: name it there")
-        assert f"tiltpile.bench.{s}" in log, (f"bench.{s} is neither named as a tool in the bench "
-                                              "docstring nor a study of notes/performance-log.md")
-
-
-def test_the_bench_tools_check_bites():
-    """The rules above refuse a tool the docstring forgets (it is imported from outside bench)."""
-    doc = docstring(PKG / "bench")
-    assert "timing" in _bench_tools(doc)
-    assert "tiltpile.cli.bench" in {m for m in MODULES
-                                    if any(t == "tiltpile.bench.timing" for t, _ in imports_of(m))}
+def test_the_benchmarks_table_names_every_tool_and_only_those():
+    """Every module of benchmarks/ is a live tool with a row in its docstring's table (the
+    finished studies left the package; notes/performance-log.md gives their commit)."""
+    mods = set(modules_of(BENCH))
+    tools = _bench_tools(docstring(BENCH))
+    assert set(tools) == mods, (f"benchmarks/__init__.py's table names {sorted(set(tools) - mods)} that "
+                                f"are not there and misses {sorted(mods - set(tools))}")
     assert not names("``pile``  the piles", "timing") and names(":mod:`.timing`", "timing")
     assert names("``chart`` (``spec``, ``plots``)", "spec") and not names("inspect the spec", "spec")
+
+
+def test_the_package_does_not_import_the_benchmarks():
+    """benchmarks/ is not installed: nothing in src/tiltpile may import it."""
+    wrong = sorted(str(p.relative_to(ROOT)) for p in PKG.rglob("*.py")
+                   if re.search(r"^\s*(from|import) benchmarks\b", p.read_text(), flags=re.M))
+    assert not wrong, f"{wrong} import benchmarks, which is not installed with tiltpile"
 
 
 # ------------------------------------------------------------------------------------------------
 # docs/architecture.md
 
 TEXT = MAP.read_text()
-ROOTS = ("src/", "tests/", "docs/", "notebooks/", "figures/", "paper/", "examples/")
+ROOTS = ("src/", "benchmarks/", "tests/", "docs/", "notebooks/", "figures/", "paper/", "examples/")
 TOP_FILES = ("Makefile", "README.md", "CHANGELOG.md", "pyproject.toml", "environment.txt")
 
 

@@ -47,7 +47,7 @@ of each part, the settings, and the fitted scaling (line through the origin, log
 
 Modules: ``spec`` (:class:`ChartSpec`, the columns, the piles), ``accuracy`` (part 1),
 ``plots`` (part 2), ``scaling`` (part 3); this one writes the files (:func:`run_chart`,
-:func:`replot`). ``python -m tiltpile.bench.chart DIR [--quick] [--parts ...] [--replot]``.
+:func:`replot`). ``python -m benchmarks.chart DIR [--quick] [--parts ...] [--replot]``.
 """
 
 from __future__ import annotations
@@ -65,11 +65,11 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from tiltpile.bench.chart import accuracy, plots, scaling
-from tiltpile.bench.chart.accuracy import accuracy_sweep
-from tiltpile.bench.chart.plots import aggregate_points, pareto_front, read_accuracy
-from tiltpile.bench.chart.scaling import scaling_fit, scaling_sweep, tile
-from tiltpile.bench.chart.spec import (ACCURACY_COLUMNS, DEFAULT_DT, DEFAULT_SLOP, DEFAULT_TOL,
+from benchmarks.chart import accuracy, plots, scaling
+from benchmarks.chart.accuracy import accuracy_sweep
+from benchmarks.chart.plots import aggregate_points, pareto_front, read_accuracy
+from benchmarks.chart.scaling import scaling_fit, scaling_sweep, tile
+from benchmarks.chart.spec import (ACCURACY_COLUMNS, DEFAULT_DT, DEFAULT_SLOP, DEFAULT_TOL,
                                        SCALING_COLUMNS, ChartSpec, grid_points)
 
 __all__ = ["ACCURACY_COLUMNS", "SCALING_COLUMNS", "DEFAULT_TOL", "DEFAULT_DT", "DEFAULT_SLOP",
@@ -177,8 +177,8 @@ def replot(outdir, spec: ChartSpec | None = None) -> list[str]:
 
 
 def main(argv: list[str] | None = None) -> int:
-    """``python -m tiltpile.bench.chart DIR [--quick] [--parts accuracy,scaling] [--replot]``."""
-    ap = argparse.ArgumentParser(prog="python -m tiltpile.bench.chart",
+    """``python -m benchmarks.chart DIR [--quick] [--parts accuracy,scaling] [--replot]``."""
+    ap = argparse.ArgumentParser(prog="python -m benchmarks.chart",
                                  description="the speed x accuracy chart (make bench)")
     ap.add_argument("dir", type=Path, help="output directory (make bench: figures/performance)")
     ap.add_argument("--quick", action="store_true", help="a tiny pile, a few points (the test's chart)")

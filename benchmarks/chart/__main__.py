@@ -1,3 +1,3 @@
-from tiltpile.bench.chart import main
+from benchmarks.chart import main
 
 raise SystemExit(main())

@@ -1,7 +1,7 @@
 """Part 1 of the chart: the accuracy sweep (``accuracy.csv``). Each (tol, dt, slop) point of
-:func:`~tiltpile.bench.chart.spec.grid_points` settles a copy of the smoke pile, tilts it to its
+:func:`~benchmarks.chart.spec.grid_points` settles a copy of the smoke pile, tilts it to its
 first avalanche onset (plus a margin) and holds another copy at a fixed angle; the columns are
-:data:`~tiltpile.bench.chart.spec.ACCURACY_COLUMNS` (what each means: :mod:`tiltpile.bench.chart`)."""
+:data:`~benchmarks.chart.spec.ACCURACY_COLUMNS` (what each means: :mod:`benchmarks.chart`)."""
 
 from __future__ import annotations
 
@@ -12,7 +12,7 @@ import numpy as np
 import pandas as pd
 
 from tiltpile import config as cfgmod
-from tiltpile.bench.chart.spec import (ACCURACY_COLUMNS, CUTOFF, DEFAULT_DT, DEFAULT_SLOP, DEFAULT_TOL,
+from benchmarks.chart.spec import (ACCURACY_COLUMNS, CUTOFF, DEFAULT_DT, DEFAULT_SLOP, DEFAULT_TOL,
                                        SETTLE_STEPS, ChartSpec, accuracy_config, copy_system, grid_points,
                                        log, starting_pile)
 from tiltpile.sim.step import System

@@ -1,6 +1,6 @@
 """Part 2 of the chart: the plots. ``pareto.png`` (time per degree against each error measure of
 the accuracy sweep, with the Pareto front) and ``scaling.png``; both can be redrawn from the CSV
-files alone (``python -m tiltpile.bench.chart --replot DIR``)."""
+files alone (``python -m benchmarks.chart --replot DIR``)."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ from pathlib import Path
 import numpy as np
 import pandas as pd
 
-from tiltpile.bench.chart.spec import ACCURACY_COLUMNS, DEFAULT_DT, DEFAULT_SLOP, DEFAULT_TOL
+from benchmarks.chart.spec import ACCURACY_COLUMNS, DEFAULT_DT, DEFAULT_SLOP, DEFAULT_TOL
 
 
 def atomic_png(fig, path: Path) -> None:

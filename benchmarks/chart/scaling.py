@@ -1,6 +1,6 @@
 """Part 3 of the chart: cost per step against the number of grains (``scaling.csv``), on settled
 piles tiled side by side (:func:`tile`) at fixed depth; the columns are
-:data:`~tiltpile.bench.chart.spec.SCALING_COLUMNS`, the fit :func:`scaling_fit`."""
+:data:`~benchmarks.chart.spec.SCALING_COLUMNS`, the fit :func:`scaling_fit`."""
 
 from __future__ import annotations
 
@@ -11,7 +11,7 @@ import numpy as np
 import pandas as pd
 
 from tiltpile import config as cfgmod
-from tiltpile.bench.chart.spec import SCALING_COLUMNS, ChartSpec, log, starting_pile
+from benchmarks.chart.spec import SCALING_COLUMNS, ChartSpec, log, starting_pile
 from tiltpile.sim import solver
 from tiltpile.sim.step import System
 
@@ -69,7 +69,7 @@ def _time_steps(sysm: System, steps: int, theta0: float, dth: float) -> dict:
 
 
 def scaling_sweep(spec: ChartSpec, progress: bool = True) -> pd.DataFrame:
-    from tiltpile.bench.pile import bench_config
+    from benchmarks.pile import bench_config
 
     cfg = bench_config(spec.base_n)
     if spec.quick:

@@ -1,5 +1,5 @@
 """What the speed x accuracy chart measures (:class:`ChartSpec`), its table columns, and the piles
-it starts from. The chart itself: :mod:`tiltpile.bench.chart`."""
+it starts from. The chart itself: :mod:`benchmarks.chart`."""
 
 from __future__ import annotations
 
@@ -117,10 +117,10 @@ def copy_system(sysm: System) -> System:
 
 
 def starting_pile(cfg: cfgmod.Config, seed: int, cache: str | None) -> System:
-    """A deposited pile for ``cfg`` (cached under ``cache`` when given, :mod:`tiltpile.bench.pile`)."""
+    """A deposited pile for ``cfg`` (cached under ``cache`` when given, :mod:`benchmarks.pile`)."""
     if cache is None:
         return protocol.deposited(cfg, seed)
-    from tiltpile.bench.pile import settled_pile
+    from benchmarks.pile import settled_pile
     return settled_pile(cfg, seed, progress=False, cache=Path(cache))
 
 

@@ -12,9 +12,10 @@ same protocol in LAMMPS), its output paths checked (``paths``) and its health ju
 finished run), run one (``runner``; or imported from another code's frames, ``importers``) or
 many at a time (``ensemble``), analysed (``analysis``),
 drawn (``figures``) and judged against the paper (``report``), tilted on to its repose angle
-(``repose``), measured (``bench``), studied beside the paper (``studies``), looked at (``view``)
+(``repose``), studied beside the paper (``studies``), looked at (``view``)
 and driven from the command line
-(``cli``). Where each fact lives, and how to add to the code: docs/architecture.md.
+(``cli``). Where each fact lives, and how to add to the code: docs/architecture.md. The measurements
+(benchmarks) live beside the package, in the repository's ``benchmarks/``, and import it.
 
 This package imports nothing itself, so that any layer may read ``tiltpile.__version__``.
 """
@@ -30,8 +31,7 @@ LAYERS = (
     ("store", "record"),                  # the run file (HDF5); the run record (figures' inputs)
     ("runner", "importers"),              # one run: simulate, check health, write; or import one
     ("ensemble", "analysis"),             # many runs on dask; observables from run files
-    ("figures", "report", "bench",        # the paper's figures, the report, measurements,
-     "repose"),                           # the repose angle of finished runs
+    ("figures", "report", "repose"),      # the paper's figures, the report, the repose angle
     ("studies",),                         # the side studies, one module each
     ("view",),                            # pictures and movies of one run
     ("cli",),                             # tiltpile <command>

@@ -160,7 +160,7 @@ def test_superseded_codes_reach_this_tiltpiles_codes():
 
 
 def test_code_change_compares_values_dtype_and_nan():
-    from tiltpile.bench import code_change as cc
+    from benchmarks import code_change as cc
     a = {("0", "0", "frames", "z"): np.array([1.0, np.nan]),
          ("0", "0", "frames", "n"): np.array([1, 2]),
          ("0", "0", "frames", "m"): np.array([1, 2])}

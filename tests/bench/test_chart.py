@@ -1,4 +1,4 @@
-"""The speed x accuracy chart (``tiltpile bench --chart``) in its quick mode on a tiny pile.
+"""The speed x accuracy chart (``python -m benchmarks.chart``, ``make bench``) in its quick mode on a tiny pile.
 
 No timing assertions: only the files, their columns, and facts that must hold whatever the machine.
 """
@@ -11,8 +11,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from tiltpile import cli
-from tiltpile.bench.chart import (ACCURACY_COLUMNS, DEFAULT_DT, DEFAULT_SLOP, DEFAULT_TOL,
+from benchmarks.chart import (ACCURACY_COLUMNS, DEFAULT_DT, DEFAULT_SLOP, DEFAULT_TOL,
                                   SCALING_COLUMNS, ChartSpec, grid_points, pareto_front, run_chart,
                                   tile)
 
@@ -129,10 +128,12 @@ def test_pareto_front():
     assert list(pareto_front([1, 2], [1, 2])) == [0]
 
 
-def test_cli_rejects_single_pile_options_with_chart(tmp_path, capsys):
-    assert cli.main(["bench", "--chart", str(tmp_path), "--n", "100"]) == 2
-    assert "--n" in capsys.readouterr().err
-    assert cli.main(["bench", "--quick"]) == 2
+def test_chart_command_rejects_an_unknown_part_before_writing(tmp_path, capsys):
+    import benchmarks.chart as chart
+
+    with pytest.raises(SystemExit) as exc:
+        chart.main([str(tmp_path / "out"), "--quick", "--parts", "accuracy,bogus"])
+    assert exc.value.code == 2 and "unknown part(s) ['bogus']" in capsys.readouterr().err
     assert not any(tmp_path.iterdir())
 
 
@@ -140,8 +141,8 @@ def test_scaling_part_with_an_old_accuracy_table(tmp_path, monkeypatch):
     """--parts scaling summarises an accuracy.csv already in the directory; one written before a
     column existed is not summarised (a warning names the missing column) and the scaling part
     still runs."""
-    import tiltpile.bench.chart as chart
-    from tiltpile.bench.chart import plots, scaling
+    import benchmarks.chart as chart
+    from benchmarks.chart import plots, scaling
 
     monkeypatch.setattr(scaling, "scaling_sweep", lambda spec, progress: pd.DataFrame())
     monkeypatch.setattr(scaling, "scaling_fit", lambda sc: {})
@@ -159,7 +160,7 @@ def test_the_committed_accuracy_table_is_read_back():
     """figures/performance/accuracy.csv (make bench) has every column the plots read."""
     from pathlib import Path
 
-    from tiltpile.bench.chart import read_accuracy
+    from benchmarks.chart import read_accuracy
 
     path = Path(__file__).resolve().parents[2] / "figures" / "performance" / "accuracy.csv"
     acc = read_accuracy(path)

@@ -7,7 +7,7 @@ import shutil
 import numpy as np
 import pytest
 
-from tiltpile.bench import compare_ensembles as ce
+from benchmarks import compare_ensembles as ce
 
 
 def test_config_diff_names_nested_keys():

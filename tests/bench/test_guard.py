@@ -7,7 +7,7 @@ import shutil
 
 import numpy as np
 
-from tiltpile.bench import guard
+from benchmarks import guard
 
 
 def _ensemble(tmp_path, name, run_path, seconds):

@@ -5,7 +5,7 @@ from __future__ import annotations
 import pytest
 
 from tiltpile import store
-from tiltpile.bench import kill_resume as kr
+from benchmarks import kill_resume as kr
 
 
 def test_a_killed_run_resumes_and_one_left_alone_finishes(tmp_path):

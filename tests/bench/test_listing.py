@@ -1,4 +1,4 @@
-"""``python -m tiltpile.bench`` lists every module of the package, and the package's docstring
+"""``python -m benchmarks`` lists every module of the package, and the package's docstring
 table names exactly those: a tool added without its line (as kill_resume once was), or a line
 left behind by a removed study, fails here."""
 
@@ -8,8 +8,8 @@ import importlib
 import importlib.util
 import re
 
-import tiltpile.bench as bench
-from tiltpile.bench import __main__ as listing
+import benchmarks as bench
+from benchmarks import __main__ as listing
 
 
 def _table() -> list[str]:
@@ -27,10 +27,10 @@ def test_every_tool_runs_as_a_module():
     """Each tool has ``main`` and runs under ``python -m`` (a module's ``__main__`` guard, a
     package's ``__main__`` module)."""
     for name in bench.tools():
-        mod = importlib.import_module(f"tiltpile.bench.{name}")
-        assert callable(getattr(mod, "main", None)), f"tiltpile.bench.{name} has no main(argv)"
+        mod = importlib.import_module(f"benchmarks.{name}")
+        assert callable(getattr(mod, "main", None)), f"benchmarks.{name} has no main(argv)"
         if hasattr(mod, "__path__"):  # found, not imported: importing it would run it
-            assert importlib.util.find_spec(f"tiltpile.bench.{name}.__main__"), name
+            assert importlib.util.find_spec(f"benchmarks.{name}.__main__"), name
         else:
             src = open(mod.__file__).read()
             assert re.search(r'^if __name__ == "__main__":', src, flags=re.M), name
@@ -39,8 +39,8 @@ def test_every_tool_runs_as_a_module():
 def test_the_listing_is_the_package(capsys):
     listing.main()
     lines = capsys.readouterr().out.splitlines()
-    assert [ln.split()[2] for ln in lines] == [f"tiltpile.bench.{n}" for n in bench.tools()]
-    assert "tiltpile.bench.kill_resume" in {ln.split()[2] for ln in lines}
+    assert [ln.split()[2] for ln in lines] == [f"benchmarks.{n}" for n in bench.tools()]
+    assert "benchmarks.kill_resume" in {ln.split()[2] for ln in lines}
     for ln, name in zip(lines, bench.tools()):
         assert ln.split(None, 3)[3] == listing.summary(name) != ""
 

@@ -3,7 +3,7 @@ same source and nothing else, and two dumps of one source are byte-identical and
 
 from __future__ import annotations
 
-from tiltpile.bench import machine_code as mc
+from benchmarks import machine_code as mc
 
 ONE = """\t.file\t"<string>"
 \t.loc\t1 241 0

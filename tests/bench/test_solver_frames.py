@@ -1,4 +1,4 @@
-"""``tiltpile.bench.solver_frames``: one step re-solved at each cap, sweep order and start, on a
+"""``benchmarks.solver_frames``: one step re-solved at each cap, sweep order and start, on a
 tiny run (60 grains) and a tiny bench pile; the table's shape, a converged step's n_m the same at
 every cap above its convergence, the run's own setting giving the stored frame back, and bad
 input refused in one line."""
@@ -10,7 +10,7 @@ import json
 import pytest
 
 from tiltpile import config
-from tiltpile.bench import solver_frames as sf
+from benchmarks import solver_frames as sf
 from tiltpile.runner import simulate
 
 CAPS = (20, 60, 200, 2000)
@@ -53,7 +53,7 @@ def test_the_table_has_one_row_per_order_start_and_cap(measured):
     tables = [ln for ln in md.splitlines() if ln.startswith("| ") and not ln.startswith("| order")]
     assert len(tables) == 2 * 2 * len(sf.ORDERS) * len(sf.STARTS)
     assert all(ln.count("|") == len(CAPS) + 4 for ln in tables)
-    assert md.startswith("Command: `python -m tiltpile.bench.solver_frames --run ")
+    assert md.startswith("Command: `python -m benchmarks.solver_frames --run ")
 
 
 def test_a_converged_step_gives_the_same_n_m_at_every_cap_above_its_convergence(measured):
@@ -123,7 +123,7 @@ def test_bad_input_is_refused_in_one_line(argv, says, tiny_run, capsys):
         argv = ["--run", *argv]
     assert sf.main(argv) == 2
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and err.startswith("python -m tiltpile.bench.solver_frames: error: ")
+    assert err.count("\n") == 1 and err.startswith("python -m benchmarks.solver_frames: error: ")
     assert says in err
 
 

@@ -1,7 +1,7 @@
 """An ensemble directory as tables: the per-frame and per-cluster observables of every run, the
 configuration they share, and the first avalanche onset of each run.
 
-What the figure notebooks and the measurement studies (``tiltpile.bench.compare_ensembles``)
+What the figure notebooks and the measurement studies (``benchmarks.compare_ensembles``)
 start from. The tables are those of :func:`tiltpile.analysis.load_observables` (columns in
 :mod:`tiltpile.analysis.observables`); run files are read through :mod:`tiltpile.store` only.
 

@@ -26,7 +26,7 @@ Its entries are data, written once:
 
 - those of the digest era (until 2026-12-05 a column's code was a digest of the code its producer
   reached, so that a refactor changing no value changed codes): each shown by
-  ``python -m tiltpile.bench.code_change OLD RUNS`` (the old commit's tables and the new one's on
+  ``python -m benchmarks.code_change OLD RUNS`` (the old commit's tables and the new one's on
   the same run files, every column, dtype and value, at the default parameters and others);
 - the last digest of each producer, mapped to its versioned code (version 1 of every producer:
   :func:`tiltpile.analysis.tables.producer_code`), computed by the commit that introduced the
@@ -117,7 +117,7 @@ SUPERSEDED: dict[str, str] = {
     # computed): every column, dtype and value the same on two smoke runs and a 1000-grain
     # default run at the default parameters and at cutoff 0.04; lost_gap 0.001 with link
     # "mobilized"; eps 0.01 with cluster_region "bulk" and min_contacts 3
-    # (``python -m tiltpile.bench.code_change 8c18fdd ...``)
+    # (``python -m benchmarks.code_change 8c18fdd ...``)
     "0ad7a5d1a718a07d": "73fb9872a18c2807",
     "408f02d62f9afc36": "d5ff07d5f2e727a0",
     "440b34679cc6dce4": "918461df078b25ec",

@@ -17,7 +17,7 @@ This study says whether the second setting may stand in for the first (``tiltpil
   :func:`tiltpile.figures.build.document`, without the plot), for both ensembles; its standard
   error by the jackknife over runs (leave one run out, :func:`jackknife`; sqrt((n - 1) / n * sum (x_i -
   x)^2)); the shift in units of the combined error sqrt(se_ref^2 + se^2), as
-  ``tiltpile.bench.guard`` measures settings, and the paired jackknife of the shift (the same
+  ``benchmarks.guard`` measures settings, and the paired jackknife of the shift (the same
   seed left out of both) beside it. A number whose leave-one-out values are not all finite has
   no error (NaN): it depends on a single run. With two common seeds (two piles of an expensive
   setting) there is no jackknife: both sides' numbers are computed and compared without an
