@@ -1,4 +1,8 @@
-"""The reproduction report judges each claim from the figures' numbers, and says when it cannot."""
+"""The reproduction report judges each claim from the figures' numbers, and says when it cannot.
+
+The judges are tested on what they return (a Judgement: verdict, reason, values), not on the
+sentences: those are the template's, each rendered once for every reason a judge gives
+(test_every_judgement_renders_for_every_reason)."""
 
 from __future__ import annotations
 
@@ -8,6 +12,7 @@ import math
 import pytest
 
 from tiltpile import config, report
+from tiltpile.report import judging
 
 
 def _doc(name, numbers):
@@ -22,6 +27,11 @@ def _write(tmp_path, docs):
 
 def _row(text: str, claim_text: str) -> str:
     return next(line for line in text.splitlines() if line.startswith(f"| {claim_text}"))
+
+
+def _judge(key: str, doc: dict) -> judging.Judgement:
+    """Claim ``key``'s judgement on a figure document, as the report judges it."""
+    return judging.judge_document(next(c for c in report.CLAIMS if c.key == key), doc)
 
 
 def test_verdicts_follow_the_numbers(tmp_path):
@@ -52,6 +62,9 @@ def test_delta_far_from_the_paper_disagrees_with_a_reason(tmp_path):
     text = report.write_report(tmp_path, tmp_path / "R.md").read_text()
     assert "**disagrees**" in _row(text, [c.text for c in report.CLAIMS if c.key == "delta"][0])
     assert "## Notes" in text
+    j = _judge("delta", _doc("fig5_cluster_sizes", {"delta_pooled": 1.5, "delta_pooled_err": 0.05}))
+    assert (j.verdict, j.reason) == ("disagrees", "fit_misses_band")    # no interval over runs
+    assert j.values["delta"][0] == 1.5 and j.note in text
 
 
 def test_no_figures_is_an_error_and_writes_nothing(tmp_path):
@@ -87,144 +100,143 @@ def _verdicts(tmp_path, docs):
     return out, text
 
 
+def _verdict(key: str, doc: dict) -> str:
+    return _judge(key, doc).verdict
+
+
 def test_onset_claims_compare_like_with_like(tmp_path):
-    v, text = _verdicts(tmp_path, [_fig2()])
+    v, _ = _verdicts(tmp_path, [_fig2()])                 # the report's rows are the judges'
     assert v["theta_m"] == "disagrees"            # no run quiet up to 14.4 deg
     assert v["theta_slide"] == "inconclusive"     # 4 of 6 runs do not slide before 22 deg
     assert v["z_mean"] == "disagrees"             # 3.5 far outside the interval
     assert v["two_populations"] == "agrees" and v["cutoff_in_gap"] == "disagrees"
     assert v["robust"] == "disagrees"             # median 5 frames
-    assert "> 22.0" in _row(text, next(c.text for c in report.CLAIMS if c.key == "theta_slide"))
+    slide = _judge("theta_slide", _fig2())
+    assert slide.reason == "median_bounded" and not slide.values["median_known"]
+    assert slide.values["end"] == 22.0 and (slide.values["n_slid"], slide.values["n_runs"]) == (2, 6)
     # more than half the runs slide: the median is known and judged against 21 +- 2 deg
-    v, text = _verdicts(tmp_path, [_fig2(theta_avalanche_per_run=[20.1, 21.5, 19.9, 22.6, None],
-                                         theta_m_max=15.0, onset_shift_median_frames=1.0,
-                                         z_quiet_run_mean_ci_high=3.46)])
-    assert v["theta_slide"] == "agrees" and v["theta_m"] == "agrees"
-    assert v["robust"] == "agrees" and v["z_mean"] == "agrees"
-    assert "KE per grain > 1e-03" in _row(text, next(c.text for c in report.CLAIMS
-                                                     if c.key == "theta_slide"))
-    v, _ = _verdicts(tmp_path, [_fig2(theta_avalanche_per_run=[15.0, 15.5, 16.0, None])])
-    assert v["theta_slide"] == "disagrees"
+    known = _fig2(theta_avalanche_per_run=[20.1, 21.5, 19.9, 22.6, None], theta_m_max=15.0,
+                  onset_shift_median_frames=1.0, z_quiet_run_mean_ci_high=3.46)
+    assert [_verdict(k, known) for k in ("theta_slide", "theta_m", "robust", "z_mean")] == ["agrees"] * 4
+    slide = _judge("theta_slide", known)
+    assert slide.reason == "median_within" and slide.values["median"] == 21.5
+    assert slide.values["avalanche_ke"] == 1e-3                 # the threshold it was judged at
+    assert _judge("theta_m", known).reason == "quiet_run_found"
+    assert _verdict("theta_slide", _fig2(theta_avalanche_per_run=[15.0, 15.5, 16.0, None])) == "disagrees"
     # the avalanche angle is judged at its fixed threshold, not at the first sustained flow above
     # the Fig. 2a threshold (with 4000 grains a slow flow some 3 deg before the slide)
-    v, _ = _verdicts(tmp_path, [_fig2(theta_slide_per_run=[15.0, 15.5, 16.0, 17.0],
-                                      theta_avalanche_per_run=[21.2, 20.8, 22.2, 21.25])])
-    assert v["theta_slide"] == "agrees"
+    assert _verdict("theta_slide", _fig2(theta_slide_per_run=[15.0, 15.5, 16.0, 17.0],
+                                         theta_avalanche_per_run=[21.2, 20.8, 22.2, 21.25])) == "agrees"
     # the cutoff between the means but on the upper population's peak is not in the gap, even
     # where the density there is a little below the lower peak's (the upper population is the
     # lower peak: 4000 cycled grains, upper mean at 2.4% lost, cutoff 0.17 sd below it)
     bm = dict(_fig2()["numbers"]["lost_bimodality"], cutoff_between_means=True,
               means=[-3.40, -1.62], sds=[0.39, 0.48], cutoff_density_ratio=0.99)
-    v, text = _verdicts(tmp_path, [_fig2(lost_bimodality=bm)])
-    assert v["cutoff_in_gap"] == "disagrees"
-    assert "0% of the lower population above it and 43% of the upper one below it" in text
-    assert ("within one standard deviation of the upper population's mean, so it splits that "
-            "population (43% of its frames on the other side)") in _note(text, "cutoff_in_gap")
+    gap = _judge("cutoff_in_gap", _fig2(lost_bimodality=bm))
+    assert (gap.verdict, gap.reason) == ("disagrees", "cutoff_on_population")
+    assert round(gap.values["above"], 2) == 0.0 and round(gap.values["below"], 2) == 0.43
+    assert gap.values["population"] == "upper" and round(gap.values["split_share"], 2) == 0.43
     # one standard deviation from both means: separated; a little less: not
     c = math.log10(0.02)
     for k, verdict in ((1.05, "agrees"), (0.95, "disagrees")):
         far = dict(bm, means=[c - 2.0, c + k * 0.3], sds=[0.5, 0.3], cutoff_density_ratio=0.2)
-        v, _ = _verdicts(tmp_path, [_fig2(lost_bimodality=far)])
-        assert v["cutoff_in_gap"] == verdict, k
+        assert _verdict("cutoff_in_gap", _fig2(lost_bimodality=far)) == verdict, k
         far = dict(bm, means=[c - k * 0.5, c + 2.0], sds=[0.5, 0.3], cutoff_density_ratio=0.2)
-        v, _ = _verdicts(tmp_path, [_fig2(lost_bimodality=far)])
-        assert v["cutoff_in_gap"] == verdict, k
+        assert _verdict("cutoff_in_gap", _fig2(lost_bimodality=far)) == verdict, k
     # without the populations' widths (a JSON before they were written) nothing is judged
-    v, _ = _verdicts(tmp_path, [_fig2(lost_bimodality=dict(bm, sds=None))])
-    assert v["cutoff_in_gap"] == "inconclusive"
+    gap = _judge("cutoff_in_gap", _fig2(lost_bimodality=dict(bm, sds=None)))
+    assert (gap.verdict, gap.reason) == ("inconclusive", "no_fit")
     # onsets without partners: the median move is "more than 10 frames"
-    v, _ = _verdicts(tmp_path, [_fig2(onset_shift_median_frames=None)])
-    assert v["robust"] == "disagrees"
+    robust = _judge("robust", _fig2(onset_shift_median_frames=None))
+    assert (robust.verdict, robust.reason) == ("disagrees", "median_beyond")
+    assert robust.values["median_shift"] == math.inf
 
 
-def _note(text: str, key: str) -> str:
-    claim = next(c.text for c in report.CLAIMS if c.key == key)
-    return next(line for line in text.splitlines() if line.startswith(f"- **{claim}**"))
-
-
-def test_onset_and_slide_notes_give_their_own_numbers(tmp_path):
+def test_onset_and_slide_notes_give_their_own_numbers():
     """The first-onset note quotes the kinetic energy of each scale's own first onsets (not the
     1000-grain range), the slide note says on which side of 21 deg the median misses, and runs
     that end at different angles are not said to share the end of their tilt."""
-    _, text = _verdicts(tmp_path, [_fig2(ke_first_onset_per_run=[2e-5, None, 7e-9, 1.2e-4],
-                                         theta_avalanche_per_run=[17.45, 18.3, 20.65, 19.0])])
-    assert "(kinetic energy per grain 7e-09 to 1e-04 at the first onsets)" in _note(text, "theta_m")
-    assert "1e-5 to 5e-4" not in text
-    assert "(18.6 deg) is more than 2 deg below" in _note(text, "theta_slide")
-    row = _row(text, next(c.text for c in report.CLAIMS if c.key == "theta_slide"))
-    assert "4 of 4 runs slide before the end of their tilt (the earliest end: 22.0 deg)" in row
+    doc = _fig2(ke_first_onset_per_run=[2e-5, None, 7e-9, 1.2e-4],
+                theta_avalanche_per_run=[17.45, 18.3, 20.65, 19.0])
+    onset = _judge("theta_m", doc)
+    assert onset.reason == "no_quiet_run" and onset.values["ke_first_onset"] == [7e-9, 1.2e-4]
+    slide = _judge("theta_slide", doc)
+    assert (slide.verdict, slide.reason) == ("disagrees", "median_off")
+    assert slide.values["median"] == pytest.approx(18.65)
+    assert slide.values["literature"] - slide.values["median"] > slide.values["tol"] == 2   # below
+    assert (slide.values["n_slid"], slide.values["n_runs"], slide.values["end"]) == (4, 4, 22.0)
     # a JSON written before fig2 kept the energies: the note says nothing of them
-    _, text = _verdicts(tmp_path, [_fig2()])
-    assert "precursor rearrangements; the large slide" in _note(text, "theta_m")
-    _, text = _verdicts(tmp_path, [_fig2(theta_avalanche_per_run=[23.5, 23.1, 24.0, None])])
-    assert "(23.8 deg) is more than 2 deg above" in _note(text, "theta_slide")
-    assert "freshly deposited" not in _note(text, "theta_slide")      # no history given
+    assert _judge("theta_m", _fig2()).values["ke_first_onset"] == []
+    slide = _judge("theta_slide", _fig2(theta_avalanche_per_run=[23.5, 23.1, 24.0, None]))
+    assert slide.reason == "median_off" and slide.values["median"] == pytest.approx(23.75)
+    assert slide.values["median"] - slide.values["literature"] > slide.values["tol"]      # above
+    assert slide.values["history"] is None                      # no history given: not "fresh"
     fresh = _fig2(theta_avalanche_per_run=[17.45, 18.3, 20.65, 19.0])
     fresh["history"] = {"pretilt_deg": [], "label": "fresh"}
-    _, text = _verdicts(tmp_path, [fresh])
-    assert "Our piles are freshly deposited; Deboeuf et al. measured" in _note(text, "theta_slide")
+    assert _judge("theta_slide", fresh).values["history"] == "fresh"
 
 
-def test_fig6_minimum_below_the_single_grain_bound_disagrees(tmp_path):
+def test_fig6_minimum_below_the_single_grain_bound_disagrees():
     six = {"classes": {"1": {"dz_min": -2.5, "dz_mean": -1.0}}, "frac_below_single_grain": 0.001,
            "largest_bin": {"size_lo": 40, "dz_min": -0.39, "dz_mean": -0.18},
            "slope_per_decade": 0.39}
-    v, _ = _verdicts(tmp_path, [_doc("fig6_cluster_stability", six)])
-    assert v["dz_min"] == "disagrees" and v["dz_shift"] == "disagrees"
+
+    def fig6():
+        return _doc("fig6_cluster_stability", six)
+    assert _verdict("dz_min", fig6()) == "disagrees" and _verdict("dz_shift", fig6()) == "disagrees"
     six.update(classes={"1": {"dz_min": -1.5, "dz_mean": -1.0}}, frac_below_single_grain=0.0,
                n_clusters_unstable=1310, frac_clusters_unstable=0.012)
-    v, text = _verdicts(tmp_path, [_doc("fig6_cluster_stability", six)])
-    assert v["dz_min"] == "agrees" and "1310 clusters" in text
-    assert "levels off" not in _note(text, "dz_shift")          # no class of 8 grains or more
+    dz_min = _judge("dz_min", fig6())
+    assert dz_min.verdict == "agrees" and dz_min.values["n_unstable"] == 1310
+    shift = _judge("dz_shift", fig6())
+    assert shift.reason == "stays_negative" and shift.values["plateau"] == []   # no class of 8 up
     # the note gives where the rise levels off (the classes from 8 grains up), at every scale
     six["classes"].update({"2-3": {"dz_mean": -0.3}, "8-15": {"dz_mean": -0.114},
                            "16+": {"dz_mean": -0.116}})
-    _, text = _verdicts(tmp_path, [_doc("fig6_cluster_stability", six)])
-    assert "from 8 grains up it levels off: -0.11 (s = 8-15), -0.12 (s >= 16);" in _note(text, "dz_shift")
+    shift = _judge("dz_shift", fig6())
+    assert shift.values["plateau"] == [["8-15", -0.114], ["16+", -0.116]] and shift.values["flat"]
     six["classes"]["16+"]["dz_mean"] = 0.2                      # still rising: not called level
-    _, text = _verdicts(tmp_path, [_doc("fig6_cluster_stability", six)])
-    assert "from 8 grains up -0.11 (s = 8-15), +0.20 (s >= 16);" in _note(text, "dz_shift")
+    shift = _judge("dz_shift", fig6())
+    assert shift.values["plateau"] == [["8-15", -0.114], ["16+", 0.2]] and not shift.values["flat"]
 
 
-def test_crossing_uses_the_interval_over_runs(tmp_path):
+def test_crossing_uses_the_interval_over_runs():
     one = {"quiet_below_run_mean": 0.032, "quiet_below_run_mean_ci_low": 0.018,
            "quiet_below_run_mean_ci_high": 0.062, "avalanche_below_fraction": 0.73,
            "dz_gen_pre_onset": 0.021}
-    v, _ = _verdicts(tmp_path, [_doc("fig1_isostaticity", one)])
-    assert v["crossing"] == "disagrees"
-    v, _ = _verdicts(tmp_path, [_doc("fig1_isostaticity", dict(one, quiet_below_run_mean_ci_low=0.004))])
-    assert v["crossing"] == "agrees"
+    j = _judge("crossing", _doc("fig1_isostaticity", one))
+    assert (j.verdict, j.reason) == ("disagrees", "quiet_below_line")
+    assert j.values["quiet_below"] == [0.032, 0.018, 0.062]
+    j = _judge("crossing", _doc("fig1_isostaticity", dict(one, quiet_below_run_mean_ci_low=0.004)))
+    assert (j.verdict, j.reason) == ("agrees", "both_halves_hold")
 
 
-def test_crossing_is_judged_on_both_halves(tmp_path):
+def test_crossing_is_judged_on_both_halves():
     """Quiet frames above the line and just above it before the onsets, but no avalanching frame
     below it: the quiet half alone (the judge before issue 51) agreed; the pile never crosses
-    after the onset, so the claim disagrees, and the note says which half failed."""
+    after the onset, so the claim disagrees, and the reason says which half failed."""
     quiet_above = {"quiet_below_run_mean": 0.002, "quiet_below_run_mean_ci_low": 0.001,
                    "quiet_below_run_mean_ci_high": 0.004, "dz_gen_pre_onset": 0.4}
     never_below = dict(quiet_above, avalanche_below_fraction=0.0)
     lo, pre = never_below["quiet_below_run_mean_ci_low"], never_below["dz_gen_pre_onset"]
     assert lo <= 0.01 and pre > 0                         # what the quiet-only judge tested
-    v, text = _verdicts(tmp_path, [_doc("fig1_isostaticity", never_below)])
-    assert v["crossing"] == "disagrees"
-    note = _note(text, "crossing")
-    assert "only 0% of our avalanching frames are below the marginal line" in note
-    assert "frame-resolution" not in note                 # the quiet half held
+
+    def crossing(numbers):
+        return _judge("crossing", _doc("fig1_isostaticity", numbers))
+    j = crossing(never_below)
+    assert (j.verdict, j.reason) == ("disagrees", "avalanche_not_across")   # the quiet half held
+    assert j.values["avalanche_below"] == 0.0
     # at least half of the avalanching frames below: agrees; just under half: disagrees
-    v, _ = _verdicts(tmp_path, [_doc("fig1_isostaticity", dict(quiet_above, avalanche_below_fraction=0.5))])
-    assert v["crossing"] == "agrees"
-    v, _ = _verdicts(tmp_path, [_doc("fig1_isostaticity", dict(quiet_above, avalanche_below_fraction=0.49))])
-    assert v["crossing"] == "disagrees"
+    assert crossing(dict(quiet_above, avalanche_below_fraction=0.5)).verdict == "agrees"
+    assert crossing(dict(quiet_above, avalanche_below_fraction=0.49)).verdict == "disagrees"
     # both halves fail: both reasons; avalanching frames not measured: only the quiet half can
     # decide (it fails here, so disagrees; were it to hold, inconclusive)
     both = dict(never_below, quiet_below_run_mean_ci_low=0.03)
-    v, text = _verdicts(tmp_path, [_doc("fig1_isostaticity", both)])
-    assert v["crossing"] == "disagrees"
-    assert "frame-resolution" in _note(text, "crossing") and "only 0%" in _note(text, "crossing")
-    v, _ = _verdicts(tmp_path, [_doc("fig1_isostaticity", dict(both, avalanche_below_fraction=None))])
-    assert v["crossing"] == "disagrees"
-    v, _ = _verdicts(tmp_path, [_doc("fig1_isostaticity", quiet_above)])
-    assert v["crossing"] == "inconclusive"
+    assert (crossing(both).verdict, crossing(both).reason) == ("disagrees", "both_halves_fail")
+    j = crossing(dict(both, avalanche_below_fraction=None))
+    assert (j.verdict, j.reason) == ("disagrees", "quiet_below_line")
+    j = crossing(quiet_above)
+    assert (j.verdict, j.reason) == ("inconclusive", "not_measured")
     # the rule the report prints says what the judge tests
     rule = report.RULES["crossing"].test
     assert "at least half of the avalanching frames" in rule and "1%" in rule
@@ -235,30 +247,35 @@ def _fig3(**kw):
                                                "enhancement_tau0": 2.23, "n_peaks": 1050}, **kw))
 
 
-def test_enhancement_names_the_peak_rule_its_numbers_were_computed_with(tmp_path):
-    """fig3 writes peak_rule only off its default ("sigma"): without it the note describes the
-    default peak; with it, that rule's; with "c0" the number is C(0) and is judged as one."""
+def test_enhancement_names_the_peak_rule_its_numbers_were_computed_with():
+    """fig3 writes peak_rule only off its default ("sigma"): without it the judgement names the
+    default peak; with it, that rule; with "c0" the number is C(0) and is judged as one. Our
+    value and the note describe the peak the rule names."""
     from tiltpile.analysis import stats
     from tiltpile.report import paper
 
     assert set(paper.PEAKS) | {"c0"} == set(stats.PEAK_RULES)
     assert paper.PEAK_DEFAULT == stats.DEFAULT_PEAK_RULE
-    v, text = _verdicts(tmp_path, [_fig3()])
-    assert v["enhancement"] == "disagrees"
-    assert "+223% right after 1050 peaks" in text
-    assert "(ours: a local maximum more than one standard deviation above" in _note(text, "enhancement")
-    v, text = _verdicts(tmp_path, [_fig3(peak_rule="local", enhancement_tau0=-0.07, n_peaks=5397)])
-    assert v["enhancement"] == "disagrees"
-    assert "(ours: any local maximum of S_m within a quiet period" in _note(text, "enhancement")
-    assert "-7% right after 5397 peaks of the largest cluster (peak: any local maximum" in text
-    v, text = _verdicts(tmp_path, [_fig3(peak_rule="decile", enhancement_tau0=0.41, n_peaks=200)])
-    assert v["enhancement"] == "agrees" and "top decile" in _row(text, "Failure rate right after")
-    v, text = _verdicts(tmp_path, [_fig3(peak_rule="c0", enhancement_tau0=0.75, n_peaks=18470)])
-    assert v["enhancement"] == "disagrees"
-    assert "C(0) = 0.75 read as the +40% (18470 pairs of quiet frames)" in text
-    assert "read as C(0)" in _note(text, "enhancement")
-    v, _ = _verdicts(tmp_path, [_fig3(peak_rule="c0", enhancement_tau0=0.4, n_peaks=18470)])
-    assert v["enhancement"] == "agrees"
+    j = _judge("enhancement", _fig3())
+    assert (j.verdict, j.reason) == ("disagrees", "out_of_band")
+    assert (j.values["enhancement"], j.values["n_peaks"], j.values["peak_rule"]) == (2.23, 1050, "sigma")
+    assert j.values["others"] == ["local", "decile", "c0"]
+    assert "(ours: a local maximum more than one standard deviation above" in j.note
+    j = _judge("enhancement", _fig3(peak_rule="local", enhancement_tau0=-0.07, n_peaks=5397))
+    assert (j.verdict, j.reason) == ("disagrees", "out_of_band")
+    assert (j.values["enhancement"], j.values["n_peaks"], j.values["peak_rule"]) == (-0.07, 5397, "local")
+    assert "(ours: any local maximum of S_m within a quiet period" in j.note
+    assert "(peak: any local maximum" in j.ours
+    j = _judge("enhancement", _fig3(peak_rule="decile", enhancement_tau0=0.41, n_peaks=200))
+    assert j.verdict == "agrees" and "top decile" in j.ours
+    j = _judge("enhancement", _fig3(peak_rule="c0", enhancement_tau0=0.75, n_peaks=18470))
+    assert (j.verdict, j.reason) == ("disagrees", "out_of_band")
+    assert (j.values["enhancement"], j.values["n_peaks"], j.values["peak_rule"]) == (0.75, 18470, "c0")
+    assert "read as C(0)" in j.note
+    assert _verdict("enhancement", _fig3(peak_rule="c0", enhancement_tau0=0.4, n_peaks=18470)) == "agrees"
+    # fewer peaks than the judge needs: inconclusive, wherever the number lies
+    j = _judge("enhancement", _fig3(n_peaks=9))
+    assert (j.verdict, j.reason, j.values["in_band"]) == ("inconclusive", "too_few_peaks", False)
 
 
 def test_scales_table_says_not_yet_run(tmp_path):
@@ -328,21 +345,21 @@ def test_the_studies_are_read_from_the_default_scales_directory(tmp_path):
 
 
 def test_the_report_names_the_piles_history(tmp_path):
-    """The source column names the piles' history from the figure's header, and the theta_m note
-    says whether the piles were fresh or cycled (a cycled pile is not called fresh)."""
+    """The source column names the piles' history from the figure's header, and the theta_m
+    judgement says whether the piles were fresh or cycled (a cycled pile is not called fresh)."""
     claim = next(c.text for c in report.CLAIMS if c.key == "theta_m")
     fresh = dict(_fig2(), history={"pretilt_deg": [], "pretilt_per_step_deg": 0.0, "label": "fresh"})
     _, text = _verdicts(tmp_path, [fresh])
     assert "smoke, 3 runs of 250 grains, fresh |" in _row(text, claim)
-    assert "Our piles are freshly deposited" in text
+    assert _judge("theta_m", fresh).values["history"] == "fresh"
     cyc = dict(_fig2(), history={"pretilt_deg": [16.0, -16.0, 16.0, -16.0, 16.0, 0.0],
                                  "pretilt_per_step_deg": 0.0, "label": "±16° 2 cycles"})
     _, text = _verdicts(tmp_path, [cyc])
     assert "smoke, 3 runs of 250 grains, ±16° 2 cycles |" in _row(text, claim)
-    assert "freshly deposited" not in text and "(±16° 2 cycles), as the paper's" in text
+    j = _judge("theta_m", cyc)
+    assert (j.values["history"], j.values["history_label"]) == ("cycled", "±16° 2 cycles")
     # a figure written before the header named the history: neither is claimed
-    _, text = _verdicts(tmp_path, [_fig2()])
-    assert "freshly deposited" not in text and "as the paper's." not in text
+    assert _judge("theta_m", _fig2()).values["history"] is None
 
 
 def test_scales_table_gives_each_scales_cost(tmp_path):
@@ -405,8 +422,11 @@ def test_every_claim_at_every_scale_and_why_a_verdict_changes(tmp_path):
     changed = [line for line in sec.splitlines() if line.startswith("- **")]
     assert {line.split("**")[1] for line in changed} == {by["cutoff_in_gap"], by["theta_slide"]}
     gap = next(line for line in changed if by["cutoff_in_gap"] in line)
-    assert "At default: the gap between our two populations" in gap
-    assert "250 grains the 2% cutoff is ~36 contacts" in gap and "At paper" not in gap
+    # the note said is the default scale's own judgement (its grains, its active contacts)
+    default = _judge("cutoff_in_gap", _fig2(lost_bimodality=bm, n_active_mean=1800.0))
+    assert default.reason == "cutoff_beyond_means" and f"At default: {default.note}" in gap
+    assert default.values["n_grains"] == 250 and default.values["contacts_at_cutoff"] == 36.0
+    assert "At paper" not in gap
     # a note several scales share is said once, naming them
     _write(root / "default-fresh", [_fig2(lost_bimodality=bm, n_active_mean=1800.0)])
     text = report.write_studies(root, tmp_path / "R.md").read_text()
@@ -798,3 +818,186 @@ def test_the_definitions_section_at_4000_grains_says_when_it_is_preliminary(tmp_
     study.write_text(json.dumps(dict(doc, n_runs=16)))
     text = report.write_studies(root, tmp_path / "R.md").read_text()
     assert "## What the disagreements depend on (16 cycled piles of 4000 grains, `paper-fast`)" in text
+
+
+# ------------------------------------------------------------------------------------------------
+# every reason of every judge, rendered: (claim key, numbers, reason, verdict); small synthetic
+# numbers, several for a reason whose sentences have branches of their own (history, peak rule, ...)
+
+_Q = {"quiet_below_run_mean": 0.002, "quiet_below_run_mean_ci_low": 0.001,
+      "quiet_below_run_mean_ci_high": 0.004, "dz_gen_pre_onset": 0.4}
+_BM = {"ashman_d": 3.3, "delta_bic": 280.0, "valley_depth": 0.6, "valley": 0.002,
+       "means": [-3.1, -2.05], "sds": [0.2, 0.4], "cutoff_between_means": False,
+       "cutoff_density_ratio": 0.72}
+_FRESH = {"pretilt_deg": [], "label": "fresh"}
+_CYCLED = {"pretilt_deg": [16.0, -16.0, 0.0], "label": "±16° 2 cycles"}
+_CI = {"estimate": 0.7, "low": 0.6, "high": 0.8}
+_XI = {"xi_spearman": 0.8, "xi_slope_log10_per_deg": 0.1, "xi_n_windows": 10}
+_C6 = {"classes": {"1": {"dz_min": -1.5, "dz_mean": -1.0}}, "frac_below_single_grain": 0.0,
+       "largest_bin": {"size_lo": 40, "dz_min": -0.3, "dz_mean": 0.05}, "slope_per_decade": 0.4}
+_R7 = {"n_onsets": 40, "spanning_before_fraction": 0.2, "spanning_at_fraction": 0.1,
+       "loss_to_onset_median": 0.5}
+
+
+def _every_reason():
+    f2 = _fig2()["numbers"]
+    yield from [
+        ("theta_m", dict(f2, theta_m_max=15.0), "quiet_run_found", "agrees"),
+        ("theta_m", dict(f2, history=_FRESH, ke_first_onset_per_run=[1e-5, 2e-4]), "no_quiet_run", "disagrees"),
+        ("theta_m", dict(f2, history=_CYCLED, ke_first_onset_per_run=[1e-5]), "no_quiet_run", "disagrees"),
+        ("theta_m", f2, "no_quiet_run", "disagrees"),
+        ("theta_m", dict(f2, theta_m_max=None), "no_onset", "inconclusive"),
+        ("theta_slide", dict(f2, theta_avalanche_per_run=[20.1, 21.5, 19.9]), "median_within", "agrees"),
+        ("theta_slide", dict(f2, theta_avalanche_per_run=[15.0, 16.0, None], history=_FRESH),
+         "median_off", "disagrees"),
+        ("theta_slide", dict(f2, theta_avalanche_per_run=[24.0, 25.0, None]), "median_off", "disagrees"),
+        ("theta_slide", dict(f2, theta_avalanche_per_run=[None, None, 25.0], theta_end_min=24.0,
+                             history=_FRESH), "median_bounded_beyond", "disagrees"),
+        ("theta_slide", f2, "median_bounded", "inconclusive"),
+        ("theta_slide", dict(f2, theta_avalanche_per_run=[]), "no_runs", "inconclusive"),
+        ("z_mean", dict(f2, z_quiet_run_mean_ci_high=3.46), "interval_meets_band", "agrees"),
+        ("z_mean", f2, "interval_misses_band", "disagrees"),
+        ("z_mean", dict(f2, z_quiet_run_mean_ci_low=None), "no_interval", "inconclusive"),
+        ("z_mean", {}, "not_measured", "inconclusive"),
+        ("two_populations", f2, "two_separated", "agrees"),
+        ("two_populations", dict(f2, lost_bimodality=dict(_BM, ashman_d=1.2)), "not_separated", "disagrees"),
+        ("two_populations", {}, "no_fit", "inconclusive"),
+        ("cutoff_in_gap", dict(f2, lost_bimodality=dict(_BM, means=[-4.0, -0.5], sds=[0.3, 0.3])),
+         "cutoff_separates", "agrees"),
+        ("cutoff_in_gap", dict(f2, n_active_mean=1800.0), "cutoff_beyond_means", "disagrees"),
+        ("cutoff_in_gap", f2, "cutoff_beyond_means", "disagrees"),
+        ("cutoff_in_gap", dict(f2, lost_bimodality=dict(_BM, cutoff_between_means=True, means=[-3.4, -1.62],
+                                                        sds=[0.39, 0.48])), "cutoff_on_population", "disagrees"),
+        ("cutoff_in_gap", dict(f2, lost_bimodality=dict(_BM, cutoff_between_means=True, means=[-1.75, -1.0],
+                                                        sds=[0.1, 0.3])), "cutoff_on_population", "disagrees"),
+        ("cutoff_in_gap", {}, "no_fit", "inconclusive"),
+        ("robust", dict(f2, onset_shift_median_frames=1.0), "median_within", "agrees"),
+        ("robust", f2, "median_beyond", "disagrees"),
+        ("robust", dict(f2, onset_shift_median_frames=None), "median_beyond", "disagrees"),
+        ("robust", {}, "not_measured", "inconclusive"),
+        ("crossing", dict(_Q, avalanche_below_fraction=0.7), "both_halves_hold", "agrees"),
+        ("crossing", dict(_Q, avalanche_below_fraction=0.7, quiet_below_run_mean_ci_low=0.03),
+         "quiet_below_line", "disagrees"),
+        ("crossing", dict(_Q, avalanche_below_fraction=0.1), "avalanche_not_across", "disagrees"),
+        ("crossing", dict(_Q, avalanche_below_fraction=0.1, quiet_below_run_mean_ci_low=0.03),
+         "both_halves_fail", "disagrees"),
+        ("crossing", _Q, "not_measured", "inconclusive"),
+        ("orientation", {"orientation_mean_deg": 61.0, "orientation_median_deg": 60.0,
+                         "n_clusters_orientation": 500}, "within_tol", "agrees"),
+        ("orientation", {"orientation_mean_deg": 45.0}, "off", "disagrees"),
+        ("orientation", {}, "not_measured", "inconclusive"),
+        ("failure_in_clusters", {"failing_in_cluster_excess": 0.3, "failing_in_cluster_enrichment": 2.0},
+         "enriched", "agrees"),
+        ("failure_in_clusters", {"failing_in_cluster_excess": 0.1, "failing_in_cluster_enrichment": 1.2},
+         "not_enriched", "disagrees"),
+        ("failure_in_clusters", {}, "not_measured", "inconclusive"),
+        ("c_peak", {"C_argmax_tau": 0, "C_tau0": 0.75, "C_max": 0.75}, "peak_at_zero", "agrees"),
+        ("c_peak", {"C_argmax_tau": -1, "C_tau0": 0.7, "C_max": 0.75}, "peak_off_zero", "disagrees"),
+        ("c_peak", {"C_argmax_tau": 2, "C_tau0": 0.7, "C_max": 0.75}, "peak_off_zero", "disagrees"),
+        ("c_peak", {}, "no_peak", "inconclusive"),
+        ("enhancement", {"enhancement_tau0": 0.4, "n_peaks": 50}, "in_band", "agrees"),
+        ("enhancement", {"enhancement_tau0": 0.4, "n_peaks": 50, "peak_rule": "decile"}, "in_band", "agrees"),
+        ("enhancement", {"enhancement_tau0": 2.2, "n_peaks": 50}, "out_of_band", "disagrees"),
+        ("enhancement", {"enhancement_tau0": 2.2, "n_peaks": 50, "peak_rule": "local"}, "out_of_band", "disagrees"),
+        ("enhancement", {"enhancement_tau0": 2.2, "n_peaks": 50, "peak_rule": "next"}, "out_of_band", "disagrees"),
+        ("enhancement", {"enhancement_tau0": 0.75, "n_peaks": 50, "peak_rule": "c0"}, "out_of_band", "disagrees"),
+        ("enhancement", {"enhancement_tau0": 2.2, "n_peaks": 5}, "too_few_peaks", "inconclusive"),
+        ("enhancement", {"enhancement_tau0": 0.4, "n_peaks": 5}, "too_few_peaks", "inconclusive"),
+        ("enhancement", {}, "not_measured", "inconclusive"),
+        ("clusters_straddle", {"quiet_frac_below": 0.3, "quiet_frac_on": 0.2, "quiet_frac_above": 0.5,
+                               "quiet_n": 300}, "straddle", "agrees"),
+        ("clusters_straddle", {"quiet_frac_below": 0.0, "quiet_frac_on": 0.2, "quiet_frac_above": 0.8},
+         "one_side", "disagrees"),
+        ("clusters_straddle", {}, "not_measured", "inconclusive"),
+        ("rest_stable", {"z_rest_mean_quiet": 3.8, "z_rest_frac_below_iso_quiet": 0}, "always_above", "agrees"),
+        ("rest_stable", {"z_rest_mean_quiet": 3.8, "z_rest_frac_below_iso_quiet": 0.01}, "frames_below",
+         "disagrees"),
+        ("rest_stable", {"z_rest_mean_quiet": 2.9, "z_rest_frac_below_iso_quiet": 0}, "mean_not_above",
+         "disagrees"),
+        ("rest_stable", {}, "not_measured", "inconclusive"),
+        ("delta", {"delta_pooled": 2.4, "delta_pooled_ci_low": 2.2, "delta_pooled_ci_high": 2.6,
+                   "n_pooled": 800, "delta_pooled_n_runs": 6, "s_min": 2}, "interval_meets_band", "agrees"),
+        ("delta", {"delta_pooled": 1.5, "delta_pooled_ci_low": 1.4, "delta_pooled_ci_high": 1.6},
+         "interval_misses_band", "disagrees"),
+        ("delta", {"delta_pooled": 2.45, "delta_pooled_err": 0.1}, "fit_meets_band", "agrees"),
+        ("delta", {"delta_pooled": 1.5, "delta_pooled_err": 0.05}, "fit_misses_band", "disagrees"),
+        ("delta", {}, "not_measured", "inconclusive"),
+        ("xi_grows", {}, "too_few_windows", "inconclusive"),
+        ("xi_grows", dict(_XI, xi_spearman=-0.5), "no_growth", "disagrees"),
+        ("xi_grows", _XI, "no_late_fit", "inconclusive"),
+        ("xi_grows", dict(_XI, windows={"-0.75": {"xi": 2.0}, "-0.25": {"xi": 4.0}}), "upturn", "agrees"),
+        ("xi_grows", dict(_XI, windows={"-0.75": {"xi": 2.0}, "-0.25": {"xi": 2.1}}), "no_upturn", "disagrees"),
+        ("smax_grows", {"s_max_far": 3.0, "s_max_near": 5.0}, "grows", "agrees"),
+        ("smax_grows", {"s_max_far": 3.0, "s_max_near": 2.0}, "does_not_grow", "disagrees"),
+        ("smax_grows", {"s_max_far": 3.0}, "not_measured", "inconclusive"),
+        ("dz_min", dict(_C6, n_clusters_unstable=1310, frac_clusters_unstable=0.012), "bounds_hold", "agrees"),
+        ("dz_min", dict(_C6, frac_below_single_grain=0.001), "bounds_fail", "disagrees"),
+        ("dz_min", {}, "not_measured", "inconclusive"),
+        ("dz_shift", _C6, "shifts_positive", "agrees"),
+        ("dz_shift", dict(_C6, largest_bin={"size_lo": 40, "dz_mean": -0.18}), "stays_negative", "disagrees"),
+        ("dz_shift", dict(_C6, largest_bin={"size_lo": 40, "dz_mean": -0.18},
+                          classes={"1": {"dz_mean": -1.0}, "8-15": {"dz_mean": -0.114},
+                                   "16+": {"dz_mean": -0.116}}), "stays_negative", "disagrees"),
+        ("dz_shift", dict(_C6, largest_bin={"size_lo": 40, "dz_mean": -0.18},
+                          classes={"1": {"dz_mean": -1.0}, "8-15": {"dz_mean": -0.3},
+                                   "16+": {"dz_mean": -0.1}}), "stays_negative", "disagrees"),
+        ("dz_shift", {"classes": {}}, "not_measured", "inconclusive"),
+        ("rigid_spans", {"quiet_spanning_fraction": _CI, "quiet_rigid_fraction": _CI}, "spans", "agrees"),
+        ("rigid_spans", {"quiet_spanning_fraction": dict(_CI, low=0.3)}, "does_not_span", "disagrees"),
+        ("rigid_spans", {}, "not_measured", "inconclusive"),
+        ("rigid_shrinks", {"rigid_fraction_shrink": {"estimate": -0.1, "low": -0.2, "high": -0.05},
+                           "rigid_fraction_far": _CI, "rigid_fraction_near": _CI, "far_deg": 4,
+                           "near_deg": 1}, "shrinks", "agrees"),
+        ("rigid_shrinks", {"rigid_fraction_shrink": {"estimate": 0.0, "low": -0.1, "high": 0.1}},
+         "does_not_shrink", "disagrees"),
+        ("rigid_shrinks", {}, "not_measured", "inconclusive"),
+        ("rigid_loses_spanning", _R7, "lost_before", "agrees"),
+        ("rigid_loses_spanning", dict(_R7, spanning_before_fraction=0.9), "still_spans", "disagrees"),
+        ("rigid_loses_spanning", dict(_R7, n_onsets=3, spanning_before_fraction=0.9), "too_few_onsets",
+         "inconclusive"),
+        ("rigid_loses_spanning", dict(_R7, n_onsets=3), "too_few_onsets", "inconclusive"),
+        ("rigid_loses_spanning", {}, "not_measured", "inconclusive"),
+        ("rigid_vs_marginal", {}, "neither_before_onset", "agrees"),
+        ("rigid_vs_marginal", {"spanning_loss_theta_to_onset": -1.2, "marginal_crossing_theta_to_onset": -0.8},
+         "together", "agrees"),
+        ("rigid_vs_marginal", {"spanning_loss_theta_to_onset": -2.5}, "apart", "disagrees"),
+    ]
+
+
+def test_every_judgement_renders_for_every_reason():
+    """Each judge gives the reason and verdict its numbers call for, with values that are plain
+    data (JSON); every sentence of the template renders on them (StrictUndefined: a value a
+    sentence names and the judge does not give fails here), every claim has its own sentences,
+    and every sentence of the template is one a judge can reach (none orphaned by a typo)."""
+    import jinja2
+
+    cases = list(_every_reason())
+    assert judging.environment().undefined is jinja2.StrictUndefined
+    macros = {name for name in dir(judging._sentences()) if "__" in name and not name.startswith("_")}
+    assert len(macros) > 2 * len(report.CLAIMS)
+    reached = {"default__ours"}
+    for key, numbers, reason, verdict in cases:
+        j = _judge(key, _doc("fig", numbers))
+        assert (j.claim, j.reason, j.verdict) == (key, reason, verdict), (key, numbers)
+        json.dumps(j.values)                                   # plain data
+        assert f"{key}__ours" in macros, key                   # the claim's own sentences
+        assert j.ours and j.ours == j.ours.strip() and "  " not in j.ours, (key, j.ours)
+        note = j.note
+        assert note == note.strip() and "\n" not in note, (key, note)
+        reached |= {f"{key}__ours", f"{key}__{reason}"}
+    assert {c.key for c in report.CLAIMS} == {k for k, *_ in cases}
+    m = judging.missing(report.CLAIMS[0])
+    assert (m.verdict, m.reason, m.ours) == (judging.MISSING, judging.NO_FIGURE, "n/a")
+    assert m.note == f"no {report.CLAIMS[0].figure}_*.json in the figures directory"
+    reached |= {"no_figure__ours", "no_figure__note"}
+    assert macros <= reached, f"sentences no judge reaches: {sorted(macros - reached)}"
+    # a claim without sentences of its own prints its values
+    plain = judging.Judgement("new_claim", judging.AGREES, "ok", {"mean": 3.14159, "label": "x"})
+    assert (plain.ours, plain.note) == ("mean = 3.14; label = x", "")
+
+
+def test_a_sentence_naming_a_value_the_judge_did_not_give_fails():
+    import jinja2
+
+    with pytest.raises(jinja2.UndefinedError):
+        judging.Judgement("theta_m", judging.DISAGREES, "no_quiet_run", {"max": 1.0}).note

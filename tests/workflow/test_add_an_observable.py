@@ -1,8 +1,10 @@
 """Adding an observable, shown in one figure and judged by one claim, takes three hand-edited
 files (docs/architecture.md, "Add an observable, a figure number and a claim"): in a scratch copy
 of src/, the column and its producer (analysis/tables.py), the figure that reads it and reports a
-number of it (figures/fig1.py), and the claim that judges that number (report/paper.py). What
-follows is generated: the column's golden values, the figure's JSON, the report's line.
+number of it (figures/fig1.py), and the claim that judges that number (report/paper.py: its judge
+returns a Judgement, and until its sentences are written in report/templates/claims.md.j2 the
+report prints its values). What follows is generated: the column's golden values, the figure's
+JSON, the report's line.
 
 Run on a copy of the tests' smoke runs (their observables computed by the copy's code, so that
 the session's caches stay those of this tiltpile).
@@ -30,10 +32,10 @@ FIG1_NUMBER = ('    numbers["snapshot"] = {"seed": seed, "frame": frame,',
                '    numbers["snapshot"] = {"seed": seed, "frame": frame,')
 CLAIM = '''
 
-def _wall_contacts(n: dict):
+def _wall_contacts(n: dict) -> Judgement:
     mean = num(n.get("wall_contacts_mean"))
-    return (f"{show(mean, '.1f')} active contacts with a wall per frame",
-            verdict_of(mean > 0, math.isfinite(mean)), "")
+    return Judgement("wall_contacts", verdict_of(mean > 0, math.isfinite(mean)),
+                     "on_walls" if mean > 0 else "off_walls", {"mean": mean})
 
 
 CLAIMS_123.append(Claim(
@@ -54,10 +56,11 @@ data, figs = Path(sys.argv[1]), Path(sys.argv[2])
 compute_observables(data, workers=1, progress=False)
 numbers = build.build("fig1", data, "smoke", figs)
 claim = next(c for c in CLAIMS if c.key == "wall_contacts")
-ours, verdict, note = claim.judge(json.loads((figs / "fig1_isostaticity.json").read_text())["numbers"])
+j = claim.judge(json.loads((figs / "fig1_isostaticity.json").read_text())["numbers"])
 values, codes = golden.compute()
 want, want_codes = golden.load()
-print(json.dumps({"number": numbers["wall_contacts_mean"], "verdict": verdict, "ours": ours,
+print(json.dumps({"number": numbers["wall_contacts_mean"], "verdict": j.verdict, "reason": j.reason,
+                  "values": j.values, "ours": j.ours, "note": j.note,
                   "golden": golden.differences(values, codes, want, want_codes)}))
 """
 
@@ -95,6 +98,8 @@ def test_an_observable_in_one_figure_and_one_claim_takes_three_files(smoke_ensem
     assert r.returncode == 0, r.stderr[-3000:]
     got = json.loads(r.stdout.splitlines()[-1])
     assert got["number"] > 0 and got["verdict"] == "agrees", got
+    assert got["reason"] == "on_walls" and got["values"] == {"mean": got["number"]}, got
+    assert got["ours"].startswith("mean = ") and got["note"] == "", got   # no sentences written
     # the new column is the only thing the golden values lack: `golden.py --update` writes it
     assert got["golden"] == {"values": [], "codes": [], "missing": ["frames.n_wall_contacts"],
                              "gone": []}

@@ -9,7 +9,10 @@ otherwise), the preparation study, and for every claim the paper's sentence and 
 judges it. :func:`inputs` lists every file it reads.
 
 Verdicts are computed, not written by hand: each :class:`Claim` has a ``judge`` that looks at the
-numbers and returns (our value as text, verdict, note).
+numbers and returns a :class:`~.judging.Judgement`: the verdict, the code of its reason and the
+numbers it rests on (``values``), no sentence; our value and the note (its ``ours`` and
+``note``) are the Jinja2 macros of ``templates/claims.md.j2`` for that claim and reason,
+rendered from the values.
 
 One concern per module; the names of ``__all__`` import from ``tiltpile.report``:
 
@@ -19,8 +22,9 @@ One concern per module; the names of ``__all__`` import from ``tiltpile.report``
 - :mod:`.blocks`: the generated blocks of the README and the docs (``tiltpile docs``), rendered by
   the templates ``templates/readme_*.md.j2`` and ``templates/presets_*.md.j2``;
 
-- :mod:`.judging`: what a claim and its rule are, the four verdicts, and the helpers that read and
-  print the numbers (shared by the judges and the tables);
+- :mod:`.judging`: what a claim, its rule and a judgement are, the four verdicts, the sentences'
+  environment, and the helpers that read and print the numbers (shared by the judges, the
+  sentences' filters and the tables);
 - :mod:`.paper`: the paper's claims (Figs. 1-6, the avalanche angle), their judges and rules;
 - :mod:`.rigidity`: the claims beyond the paper (the rigid clusters, Fig. 7), likewise;
 - :mod:`.claims`: all of them in the report's order (``CLAIMS``) with their rules (``RULES``);

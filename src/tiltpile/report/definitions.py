@@ -4,7 +4,8 @@ scale's figures directory), and for each claim that disagrees under the analysis
 definition the definitions that change its verdict, by measurement.
 
 The judges are the claims' own (:mod:`.claims`), applied to each definition's figure documents
-as to the figures' JSON (:func:`tiltpile.report.document.judge_all`'s rule, without the notes).
+as to the figures' JSON (:func:`tiltpile.report.document.judgements`' rule: each claim's
+:class:`~.judging.Judgement` on its figure document, without the notes).
 """
 
 from __future__ import annotations
@@ -13,7 +14,7 @@ import json
 import math
 from pathlib import Path
 
-from .judging import AGREES, DISAGREES, INCONCLUSIVE, MISSING, Claim, num, show
+from .judging import AGREES, DISAGREES, INCONCLUSIVE, MISSING, Claim, judge_document, missing, num, show
 
 FILE = "definitions.json"
 #: the definition the analysis uses (the study's first)
@@ -28,20 +29,16 @@ def load(figures_dir) -> dict | None:
 
 
 def verdicts(doc: dict, claims: list[Claim]) -> dict[str, dict[str, tuple[str, str]]]:
-    """{definition key: {claim key: (ours, verdict)}} of every definition of the study."""
+    """{definition key: {claim key: (ours, verdict)}} of every definition of the study (its
+    claims' :class:`~.judging.Judgement`, our value rendered)."""
     out = {}
     for d in doc["definitions"]:
         figs = d["documents"]
         row = {}
         for c in claims:
             stem = next((s for s in figs if s.startswith(c.figure + "_")), None)
-            if stem is None:
-                row[c.key] = ("n/a", MISSING)
-                continue
-            fd = figs[stem]
-            ours, verdict, _ = c.judge({**fd.get("numbers", {}), "history": fd.get("history"),
-                                        "n_grains": fd.get("n_grains")})
-            row[c.key] = (ours, verdict)
+            j = missing(c) if stem is None else judge_document(c, figs[stem])
+            row[c.key] = (j.ours, j.verdict)
         out[d["key"]] = row
     return out
 

@@ -9,8 +9,8 @@ ENGINES=paper-5x``) and the paper's own (``paper-dem`` against the committed ``p
 ``make engines ENGINES=paper``), the claims judged on the
 figure documents the study writes of each side.
 
-The per-claim verdicts are the report's own (:func:`tiltpile.report.document.judge_all` on each
-scale's figures), handed in by :func:`tiltpile.report.document.write_report`.
+The per-claim verdicts are the report's own (:func:`tiltpile.report.document.judgements` on each
+scale's figures), handed in by :func:`tiltpile.report.document.render_studies`.
 """
 
 from __future__ import annotations
@@ -107,15 +107,16 @@ def pile_table(study: dict) -> list[str]:
 def shared(judged: dict[str, list], claims: list[Claim], pair=PAIR) -> dict[str, list[str]]:
     """{kind: [claim text (ours; theirs)]} of the claims of the paper that either engine's
     figures disagree with: "both" (not our engine's), "cd" (ours only), "dem" (the other engine
-    only); ``judged``: {scale: judge_all's rows} of the two scales of ``pair``."""
+    only); ``judged``: {scale: :func:`~.document.judgements`' rows} of the two scales of
+    ``pair``."""
     ref, other = (judged[s] for s in pair)
     out = {"both": [], "cd": [], "dem": []}
-    for c, a, b in zip(claims, ref, other):
-        va, vb = a[2], b[2]
+    for c, (_, a, _), (_, b, _) in zip(claims, ref, other):
+        va, vb = a.verdict, b.verdict
         if c.paper == BEYOND or DISAGREES not in (va, vb) or MISSING in (va, vb):
             continue
         kind = "both" if va == vb == DISAGREES else "cd" if va == DISAGREES else "dem"
-        out[kind].append(f"{c.text} (paper {c.paper}; CD {a[1]}, {va}; DEM {b[1]}, {vb})")
+        out[kind].append(f"{c.text} (paper {c.paper}; CD {a.ours}, {va}; DEM {b.ours}, {vb})")
     return out
 
 
@@ -131,7 +132,7 @@ def render_paper(study: dict | None, judged: dict[str, list], claims: list[Claim
                  pair=PAPER_PAIR) -> list[str]:
     """Markdown lines of the subsection "At 4000 grains" of one pair of ``PAPER_PAIRS``: the
     reference preset's piles in both engines, pile against pile, and the claims on each side's
-    figure documents (``judged``: {scale: judge_all's rows} of ``pair``, from
+    figure documents (``judged``: {scale: judgements' rows} of ``pair``, from
     :func:`side_dirs`). Without the study, one line saying it is not yet computed and how to
     make it."""
     ref, other = pair

@@ -61,13 +61,14 @@ def side_dirs(figures_dir, pair=PAIR) -> dict[str, Path]:
 
 
 def differing(judged: dict[str, list], claims: list[Claim], pair=PAIR) -> list[str]:
-    """The paper's claims whose verdict is not the same on both sides (claim (ref; other))."""
+    """The paper's claims whose verdict is not the same on both sides (claim (ref; other));
+    ``judged``: {scale: :func:`~.document.judgements`' rows} of the two sides of ``pair``."""
     ref, other = (judged[s] for s in pair)
     out = []
-    for c, a, b in zip(claims, ref, other):
-        if c.paper == BEYOND or MISSING in (a[2], b[2]) or a[2] == b[2]:
+    for c, (_, a, _), (_, b, _) in zip(claims, ref, other):
+        if c.paper == BEYOND or MISSING in (a.verdict, b.verdict) or a.verdict == b.verdict:
             continue
-        out.append(f"{c.text} ({pair[0]} {a[1]}, {a[2]}; {pair[1]} {b[1]}, {b[2]})")
+        out.append(f"{c.text} ({pair[0]} {a.ours}, {a.verdict}; {pair[1]} {b.ours}, {b.verdict})")
     return out
 
 

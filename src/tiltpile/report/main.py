@@ -23,8 +23,8 @@ from . import engines as _engines
 from . import friction as _friction
 from . import history_rate as _rate
 from .claims import CLAIMS, RULES
-from .document import judge_all, load_figures
-from .judging import AGREES, DISAGREES, INCONCLUSIVE, MISSING, Claim
+from .document import judgements, load_figures
+from .judging import AGREES, DISAGREES, INCONCLUSIVE, MISSING, Claim, Judgement
 from .rigidity import BEYOND
 from .scales import preset_dir, scale_dirs
 
@@ -57,13 +57,13 @@ def _doc(figs: dict) -> dict:
     return next(iter(figs.values()), {})
 
 
-def _judged(figures_dir, claims) -> tuple[dict, dict[str, tuple]]:
-    """(a figure document of the directory, {claim key: (ours, verdict, note)}); ({}, {}) when
-    the directory holds no figure."""
+def _judged(figures_dir, claims) -> tuple[dict, dict[str, Judgement]]:
+    """(a figure document of the directory, {claim key: its Judgement}); ({}, {}) when the
+    directory holds no figure."""
     figs = load_figures(figures_dir) if Path(figures_dir).is_dir() else {}
     if not figs:
         return {}, {}
-    return _doc(figs), {c.key: (ours, v, note) for c, ours, v, note, _ in judge_all(figs, claims)}
+    return _doc(figs), {c.key: j for c, j, _ in judgements(figs, claims)}
 
 
 def _extremes(by_def: dict[str, str], labels: dict[str, str]) -> dict | None:
@@ -115,7 +115,7 @@ def _engine_pairs(root, claims) -> list[dict]:
                      for s in pair}
         if not all(sides.values()):
             continue
-        judged = {s: {c.key: v for c, _, v, _, _ in judge_all(f, claims)} for s, f in sides.items()}
+        judged = {s: {c.key: j.verdict for c, j, _ in judgements(f, claims)} for s, f in sides.items()}
         doc = _doc(sides[pair[1]])
         study = _engines.load(d)
         out.append({"ref": pair[0], "dem": pair[1], "grains": doc.get("n_grains"),
@@ -169,7 +169,7 @@ def _rates(root, claims) -> list[dict]:
         sides = {s: load_figures(d) if d.is_dir() else {} for s, d in _rate.side_dirs(faster, pair).items()}
         if not all(sides.values()):
             continue
-        judged = {s: judge_all(f, claims) for s, f in sides.items()}
+        judged = {s: judgements(f, claims) for s, f in sides.items()}
         differ = _rate.differing(judged, claims, pair)
         cost = {s: (_doc(f).get("cost") or {}) for s, f in sides.items()}
         out.append({"ref": pair[0], "faster": pair[1], "speedup": _rate.speedup(pair),
@@ -221,7 +221,7 @@ def _scale_table(root, claims) -> list[dict]:
         if not judged:
             continue
         n2 = (load_figures(d).get("fig2_avalanche_criterion") or {}).get("numbers", {})
-        counts = {v: sum(1 for j in judged.values() if j[1] == v)
+        counts = {v: sum(1 for j in judged.values() if j.verdict == v)
                   for v in (AGREES, DISAGREES, INCONCLUSIVE)}
         out.append({"name": name, "grains": doc.get("n_grains"), "runs": doc.get("n_runs"),
                     "history": (doc.get("history") or {}).get("label") or "fresh",
@@ -231,7 +231,7 @@ def _scale_table(root, claims) -> list[dict]:
                                                    "z_quiet_run_mean_ci_high")],
                     "n_m": [_num(n2.get(k)) for k in ("n_m_quiet_run_mean", "n_m_quiet_run_mean_ci_low",
                                                      "n_m_quiet_run_mean_ci_high")],
-                    "verdicts": {k: j[1] for k, j in judged.items()}, "counts": counts})
+                    "verdicts": {k: j.verdict for k, j in judged.items()}, "counts": counts})
     return out
 
 
@@ -251,10 +251,12 @@ def context(root="figures", claims: list[Claim] | None = None) -> dict:
     small_dem = [e for e in engines if e["grains"] != paper_doc.get("n_grains")]
     rows = []
     for i, c in enumerate(claims):
-        ours, verdict, note = paper[c.key]
+        j = paper[c.key]
+        ours = j.ours
         rows.append({"n": i + 1, "key": c.key, "text": c.text, "paper": c.paper, "beyond": c.paper == BEYOND,
-                     "ours": ours, "headline": headline(ours), "verdict": verdict, "note": note,
-                     "rule": RULES.get(c.key), "small": small.get(c.key, (None, MISSING))[1],
+                     "ours": ours, "headline": headline(ours), "verdict": j.verdict, "note": j.note,
+                     "reason": j.reason, "values": j.values, "rule": RULES.get(c.key),
+                     "small": small[c.key].verdict if c.key in small else MISSING,
                      "definitions": defs["4000"].get("extremes", {}).get(c.key),
                      "dem_big": [e["other"].get(c.key, MISSING) for e in big_dem],
                      "dem_small": [e["other"].get(c.key, MISSING) for e in small_dem]})

@@ -5,6 +5,10 @@ numbers it reads, the judge, and the :class:`Rule` the report prints), appended 
 from :mod:`tiltpile.paper_values`, a tolerance of ours from a constant beside its judge; the
 judge compares with them and the rule's text is formatted from them, so the two cannot say
 different things. The keys of the numbers are those written by ``tiltpile.figures.figN.compute``.
+
+A judge returns a :class:`Judgement`: its verdict, the code of its reason and the numbers its
+sentences quote; the sentences (our value, the note of each reason) are the macros of
+``templates/claims.md.j2`` named after the claim's key.
 """
 
 from __future__ import annotations
@@ -14,14 +18,16 @@ import math
 from tiltpile.paper_values import (AVALANCHE_DEG, DELTA, ENHANCEMENT, FIG5_WINDOWS_DEG,
                                    ONSET_SHIFT_FRAMES, ORIENTATION_DEG, QUIET_DEG, SLIDE_KE, Z_MEAN)
 
-from .judging import (AGREES, DISAGREES, INCONCLUSIVE, SEPARATION, Claim, Rule, num, overlaps,
-                      show, show_ci, verdict_of, wrong_side)
+from .judging import (DISAGREES, INCONCLUSIVE, SEPARATION, Claim, Judgement, Rule,
+                      interval_of, num, overlaps, verdict_of, wrong_side)
+from .judging import sci as _sci
 
 
-def _sci(x: float) -> str:
-    """1e-3 as '1e-3' (one significant digit, the exponent without padding)."""
-    mant, exp = f"{x:.0e}".split("e")
-    return f"{mant}e{int(exp)}"
+def _history(n: dict) -> str | None:
+    """"fresh" for piles freshly deposited (no pretilt), "cycled" for piles tilted back and forth
+    before the ramp, None where the figure does not say (written before the header named it)."""
+    legs = (n.get("history") or {}).get("pretilt_deg")
+    return "fresh" if legs == [] else "cycled" if legs else None
 
 
 # ------------------------------------------------------------------------------------------------
@@ -30,35 +36,21 @@ def _sci(x: float) -> str:
 CLAIMS_123: list[Claim] = []      # in report order: each appended right after its judge
 
 
-def _theta_m(n: dict):
+def _theta_m(n: dict) -> Judgement:
+    """Some run stays quiet up to the paper's window: "quiet_run_found"; none does:
+    "no_quiet_run" (the note names the kinetic energy of the first onsets, from fig2's
+    ke_first_onset_per_run where it wrote them, and the piles' history); no onset: "no_onset"."""
     q = QUIET_DEG.value
     mx = num(n.get("theta_m_max"))
-    k = n.get("n_runs_with_onset")
-    ours = (f"first onset {show_ci(n, 'theta_m', '.1f', 'theta_m_mean')} deg (mean [95% CI], {k} runs; "
-            f"range {show(num(n.get('theta_m_min')), '.1f')}-{show(mx, '.1f')})")
+    ke = sorted(v for v in (num(x) for x in (n.get("ke_first_onset_per_run") or []))
+                if math.isfinite(v) and v > 0)
+    values = {"theta_m": interval_of(n, "theta_m", "theta_m_mean"),
+              "n_runs": n.get("n_runs_with_onset"), "min": num(n.get("theta_m_min")), "max": mx,
+              "quiet_deg": q, "ke_first_onset": [ke[0], ke[-1]] if len(ke) > 1 else ke,
+              "history": _history(n), "history_label": (n.get("history") or {}).get("label")}
     ok = mx >= q
-    legs = ((n.get("history") or {}).get("pretilt_deg"))
-    why = ("Our piles are freshly deposited; the paper's had been tilted back and forth before, "
-           "which suppresses precursors below the earlier angle." if legs == [] else
-           f"Our piles were tilted back and forth before the ramp "
-           f"({(n.get('history') or {}).get('label')}), as the paper's." if legs else "")
-    note = "" if ok or not math.isfinite(mx) else (
-        f"no run stays quiet up to {q:g} deg: the paper's Fig. 5 has quiet frames {q:g} deg before an "
-        f"onset, so some of its piles had no 2% event before {q:g} deg; ours all have one by "
-        f"{show(mx, '.1f')} deg. These first onsets are precursor rearrangements"
-        f"{_ke_range(n.get('ke_first_onset_per_run'))}; the large slide comes later (next claim). "
-        + why).strip()
-    return ours, verdict_of(ok, math.isfinite(mx)), note
-
-
-def _ke_range(per_run) -> str:
-    """' (kinetic energy per grain a to b at the first onsets)' from fig2's
-    ke_first_onset_per_run, or '' where fig2 did not write it."""
-    ke = sorted(v for v in (num(x) for x in (per_run or [])) if math.isfinite(v) and v > 0)
-    if not ke:
-        return ""
-    span = show(ke[0], ".0e") if len(ke) == 1 else f"{show(ke[0], '.0e')} to {show(ke[-1], '.0e')}"
-    return f" (kinetic energy per grain {span} at the first onsets)"
+    reason = "no_onset" if not math.isfinite(mx) else "quiet_run_found" if ok else "no_quiet_run"
+    return Judgement("theta_m", verdict_of(ok, math.isfinite(mx)), reason, values)
 
 
 CLAIMS_123.append(Claim(
@@ -71,45 +63,37 @@ CLAIMS_123.append(Claim(
          "BCa bootstrap interval over runs, for information.")))
 
 
-def _theta_slide(n: dict):
+def _theta_slide(n: dict) -> Judgement:
     """The avalanche angle: each run's first large slide at the fixed threshold ``avalanche_ke``
     (fig2), the same at every scale (the first sustained flow above the Fig. 2a threshold is
-    reported beside it in the per-scale table)."""
+    reported beside it in the per-scale table). The median known (more than half of the runs
+    slide before the end of their tilt): "median_within" or "median_off" the literature's band;
+    only bounded from below: "median_bounded_beyond" (the bound beyond the band) or
+    "median_bounded"; no run: "no_runs"."""
     a = AVALANCHE_DEG
     per = [num(v) for v in (n.get("theta_avalanche_per_run") or [])]
     k = sum(math.isfinite(v) for v in per)
     m = len(per)
     end = num(n.get("theta_end_min"))
     fin = sorted(v for v in per if math.isfinite(v))
-    if m and k > m / 2:
+    known = bool(m and k > m / 2)
+    if known:
         # the median is known when more than half of the runs slide before the end of the tilt
         vals = fin + [math.inf] * (m - k)
         med = vals[(m - 1) // 2] if m % 2 else 0.5 * (vals[m // 2 - 1] + vals[m // 2])
-        med_txt, measurable = show(med, ".1f"), math.isfinite(med)
+        measurable = math.isfinite(med)
         ok = abs(med - a.value) <= a.tol
+        reason = "median_within" if ok else "median_off"
     else:
         med = math.nan
-        med_txt = f"> {show(end, '.1f')}" if m else "n/a"
         measurable = m > 0 and end > a.hi        # a median beyond the band is known to disagree
         ok = False
-    ours = (f"first large slide: median {med_txt} deg; {k} of {m} runs slide before the end of "
-            f"their tilt (the earliest end: {show(end, '.1f')} deg)" + (f", at {', '.join(show(v, '.2f') for v in fin)} deg"
-                                               if fin else "")
-            + f" (KE per grain > {show(num(n.get('avalanche_ke')), '.0e')} over "
-            f">= {show(num(n.get('slide_sustain_deg')), 'g')} deg)")
-    note = ""
-    if not measurable:
-        note = ("fewer than half of the runs slide before the end of the tilt, so the median slide "
-                "angle is only known to lie above the last angle; more runs or a longer tilt "
-                "decide it; the per-scale table shows how it changes with the number of grains, "
-                "and `tiltpile repose` (the preparation study) tilts the runs on into their slides.")
-    elif not ok:
-        note = (f"our median first large slide ({med_txt} deg) is more than {a.tol:g} deg "
-                f"{'below' if med < a.value else 'above'} the literature's ~{a.value:g} deg.")
-        if (n.get("history") or {}).get("pretilt_deg") == []:
-            note += (" Our piles are freshly deposited; Deboeuf et al. measured theirs after two "
-                     "cycles past theta_rev (the preparation study compares the two histories).")
-    return ours, verdict_of(ok, measurable), note
+        reason = "no_runs" if not m else "median_bounded_beyond" if measurable else "median_bounded"
+    values = {"median": med, "median_known": known, "n_slid": k, "n_runs": m, "end": end,
+              "slides": fin, "avalanche_ke": num(n.get("avalanche_ke")),
+              "sustain_deg": num(n.get("slide_sustain_deg")), "literature": a.value, "tol": a.tol,
+              "history": _history(n)}
+    return Judgement("theta_slide", verdict_of(ok, measurable), reason, values)
 
 
 CLAIMS_123.append(Claim(
@@ -130,19 +114,17 @@ CLAIMS_123.append(Claim(
          f"only bounded: inconclusive unless the bound exceeds {AVALANCHE_DEG.hi:g} deg.")))
 
 
-def _z_mean(n: dict):
+def _z_mean(n: dict) -> Judgement:
+    """The interval of <z> over runs meets the paper's band ("interval_meets_band") or misses it
+    ("interval_misses_band"); no interval: "no_interval" (inconclusive, with the note of a
+    miss), or "not_measured" without <z> either."""
     lo, hi = num(n.get("z_quiet_run_mean_ci_low")), num(n.get("z_quiet_run_mean_ci_high"))
     z = num(n.get("z_quiet_run_mean"))
     ok = overlaps(lo, hi, Z_MEAN.lo, Z_MEAN.hi)
-    note = "" if ok or not math.isfinite(z) else (
-        "we count force-bearing contacts (f_n > 0) of bulk grains without rattlers (top and bottom "
-        "layers removed); the paper does not say which contacts its <z> counts. A contact list of "
-        "the pairs within a small gap counts ~3.5 (the definitions study), and our soft-sphere DEM "
-        "counts more than CD on the same piles (the engines' section). Our piles are also "
-        "deposited differently (loose random fill, settling under gravity at mu = 0.5), which "
-        "sets z.")
-    return (f"{show_ci(n, 'z_quiet_run_mean', '.3f')} (quiet frames, bulk without rattlers)",
-            verdict_of(ok, math.isfinite(lo)), note)
+    reason = ("interval_meets_band" if ok else "interval_misses_band" if math.isfinite(lo) else
+              "no_interval" if math.isfinite(z) else "not_measured")
+    return Judgement("z_mean", verdict_of(ok, math.isfinite(lo)), reason,
+                     {"z": interval_of(n, "z_quiet_run_mean"), "band": [Z_MEAN.lo, Z_MEAN.hi]})
 
 
 CLAIMS_123.append(Claim(
@@ -158,17 +140,17 @@ CLAIMS_123.append(Claim(
 BIC_GAIN, ASHMAN_D = 10, 2
 
 
-def _two_populations(n: dict):
+def _two_populations(n: dict) -> Judgement:
+    """"two_separated" (Ashman's D and the BIC gain both above their thresholds),
+    "not_separated", or "no_fit" (no mixture fitted)."""
     b = n.get("lost_bimodality") or {}
-    d, bic, depth = num(b.get("ashman_d")), num(b.get("delta_bic")), num(b.get("valley_depth"))
-    ours = (f"Ashman D = {show(d, '.1f')}, valley depth {show(depth, '.2f')} at "
-            f"{show(num(b.get('valley')), '.2%')} lost, BIC(1) - BIC(2) = {show(bic, '.0f')}; "
-            f"{show(num(n.get('lost_zero_fraction')), '.0%')} of frames lose no contact")
+    d, bic = num(b.get("ashman_d")), num(b.get("delta_bic"))
     ok = d > ASHMAN_D and bic > BIC_GAIN
-    note = "" if ok or not math.isfinite(d) else (
-        "the lost fractions of the frames losing at least one contact are not two separated "
-        "populations (one skewed population, or two overlapping ones).")
-    return ours, verdict_of(ok, math.isfinite(d)), note
+    reason = "two_separated" if ok else "not_separated" if math.isfinite(d) else "no_fit"
+    values = {"ashman_d": d, "valley_depth": num(b.get("valley_depth")),
+              "valley": num(b.get("valley")), "delta_bic": bic,
+              "zero_fraction": num(n.get("lost_zero_fraction"))}
+    return Judgement("two_populations", verdict_of(ok, math.isfinite(d)), reason, values)
 
 
 CLAIMS_123.append(Claim(
@@ -182,39 +164,26 @@ CLAIMS_123.append(Claim(
          "nothing are reported apart.")))
 
 
-def _cutoff_in_gap(n: dict):
+def _cutoff_in_gap(n: dict) -> Judgement:
+    """"cutoff_separates" (at most SEPARATION of either population on its wrong side); else
+    "cutoff_beyond_means" (beyond both means) or "cutoff_on_population" (between them, on one
+    population: which, and its share on the other side); "no_fit" without the populations. The
+    contacts at the cutoff: the cutoff times fig2's n_active_mean (NaN without it)."""
     b = n.get("lost_bimodality") or {}
-    between = b.get("cutoff_between_means")
-    means = b.get("means") or [None, None]
     cutoff = num(n.get("cutoff"))
     above, below = wrong_side(b, cutoff)
-    ms = ", ".join(show(10 ** num(m), ".2%") if m is not None else "n/a" for m in means)
-    ours = (f"population means at {ms} lost; the {show(cutoff, '.0%')} cutoff leaves "
-            f"{show(above, '.0%')} of the lower population above it and {show(below, '.0%')} of the "
-            f"upper one below it (density there {show(num(b.get('cutoff_density_ratio')), '.2f')} "
-            "of the lower peak)")
     measurable = math.isfinite(above) and math.isfinite(below)
     ok = measurable and above <= SEPARATION and below <= SEPARATION
-    note = "" if ok or not measurable else (
-        f"the gap between our two populations is at {show(num(b.get('valley')), '.2%')} lost, and "
-        "the 2% cutoff is not in it: "
-        + ("it lies beyond both population means, on the far side of the upper one (at "
-           f"{_contacts_at_cutoff(n)}, and precursor rearrangements of the top layers lose that "
-           "many)." if not between else
-           f"it lies between the means but within one standard deviation of the "
-           f"{'upper' if below > above else 'lower'} population's mean, so it splits that population "
-           f"({show(max(above, below), '.0%')} of its frames on the other side) instead of "
-           "separating the two."))
-    return ours, verdict_of(ok, measurable), note
-
-
-def _contacts_at_cutoff(n: dict) -> str:
-    """'N grains the 2% cutoff is ~k contacts' (k from the mean active contacts of a frame, fig2's
-    n_active_mean; without it, the cutoff as a share of the contacts)."""
-    cutoff, active = num(n.get("cutoff")), num(n.get("n_active_mean"))
-    head = f"{n.get('n_grains')} grains the {show(cutoff, '.0%')} cutoff"
-    return (f"{head} is ~{show(cutoff * active, '.0f')} contacts" if math.isfinite(active)
-            else f"{head} is that share of the active contacts")
+    reason = ("cutoff_separates" if ok else "no_fit" if not measurable else
+              "cutoff_on_population" if b.get("cutoff_between_means") else "cutoff_beyond_means")
+    values = {"means_lost": [10 ** num(m) if m is not None else math.nan
+                             for m in b.get("means") or [None, None]],
+              "cutoff": cutoff, "above": above, "below": below,
+              "density_ratio": num(b.get("cutoff_density_ratio")), "valley": num(b.get("valley")),
+              "population": "upper" if below > above else "lower",
+              "split_share": max(above, below), "n_grains": n.get("n_grains"),
+              "contacts_at_cutoff": cutoff * num(n.get("n_active_mean"))}
+    return Judgement("cutoff_in_gap", verdict_of(ok, measurable), reason, values)
 
 
 CLAIMS_123.append(Claim(
@@ -228,20 +197,18 @@ CLAIMS_123.append(Claim(
          "them and not on a population.")))
 
 
-def _robust(n: dict):
+def _robust(n: dict) -> Judgement:
+    """The median shift of the onsets between cutoffs within the paper's frames
+    ("median_within") or beyond them ("median_beyond", infinite where most onsets have no
+    partner); "not_measured" without onsets compared."""
     raw, unmatched = n.get("onset_shift_median_frames"), num(n.get("onset_unmatched_fraction"))
     # null with onsets compared: most onsets have no partner (a move larger than 10 frames)
     med = math.inf if raw is None and math.isfinite(unmatched) else num(raw)
-    f = num(n.get("onset_shift_max_frames"))
-    ours = (f"median shift {show(med, '.0f') if math.isfinite(med) else '> 10'} frames (max "
-            f"{show(f, '.0f')}, {show(num(n.get('onset_shift_max_deg')), '.2f')} deg); "
-            f"{show(unmatched, '.0%')} of onsets have no partner within 10 frames at another cutoff")
     ok = med <= ONSET_SHIFT_FRAMES.value
-    note = "" if ok or math.isnan(med) else (
-        "the lost fraction of our quiet frames is not far below 2% (Fig. 2b: the upper population "
-        "straddles the cutoff), so 1% and 4% cut through a population rather than through a gap, "
-        "and onsets appear, vanish or move by several frames.")
-    return ours, verdict_of(ok, not math.isnan(med)), note
+    reason = "median_within" if ok else "not_measured" if math.isnan(med) else "median_beyond"
+    values = {"median_shift": med, "max_frames": num(n.get("onset_shift_max_frames")),
+              "max_deg": num(n.get("onset_shift_max_deg")), "unmatched": unmatched}
+    return Judgement("robust", verdict_of(ok, not math.isnan(med)), reason, values)
 
 
 CLAIMS_123.append(Claim(
@@ -262,34 +229,29 @@ QUIET_BELOW_ALLOWED = 0.01
 AVALANCHE_ACROSS, AVALANCHE_ACROSS_WORDS = 0.5, "half"
 
 
-def _crossing(n: dict):
+def _crossing(n: dict) -> Judgement:
     """Both halves of "crosses the marginal stability line only after the start of the
     avalanche": quiet frames above the line (up to a frame-resolution allowance, and above it
     just before an onset) and avalanching frames across it (Fig. 2d: the avalanche occupies a
-    region well separated from the quiet one, on the other side of the line)."""
+    region well separated from the quiet one, on the other side of the line). Reasons:
+    "both_halves_hold", "quiet_below_line", "avalanche_not_across", "both_halves_fail", and
+    "not_measured" (a half that holds, the other unmeasured)."""
     lo = num(n.get("quiet_below_run_mean_ci_low"))
     a = num(n.get("avalanche_below_fraction"))
     pre = num(n.get("dz_gen_pre_onset"))
-    ours = (f"{show_ci(n, 'quiet_below_run_mean', '.1%')} of quiet and {show(a, '.0%')} of avalanching "
-            f"frames below the line; mean delta z_gen just before an onset {show(pre, '+.3f')}")
     quiet_measured = math.isfinite(lo) and math.isfinite(pre)
     quiet_ok, across = lo <= QUIET_BELOW_ALLOWED and pre > 0, a >= AVALANCHE_ACROSS
-    notes = []
-    if quiet_measured and not quiet_ok:
-        notes.append(
-            f"quiet frames below the marginal line are more than the {QUIET_BELOW_ALLOWED:.0%} a "
-            "frame-resolution effect would explain, in every resampling of the runs: our pile "
-            "does reach the line during quiet periods (mostly just before onsets), although on "
-            "average it stays above it until the onset; fig1 shows the mean quiet path.")
-    if math.isfinite(a) and not across:
-        notes.append(
-            f"only {show(a, '.0%')} of our avalanching frames are below the marginal line, fewer "
-            f"than {AVALANCHE_ACROSS_WORDS}: most of the avalanching frames stay on the stable "
-            "side, so the crossing after the onset that the paper's Fig. 2d shows (the avalanche "
-            "in a region of its own, across the line) does not happen in most of them.")
-    if notes:
-        return ours, DISAGREES, " ".join(notes)
-    return ours, verdict_of(True, quiet_measured and math.isfinite(a)), ""
+    quiet_fails, across_fails = quiet_measured and not quiet_ok, math.isfinite(a) and not across
+    values = {"quiet_below": interval_of(n, "quiet_below_run_mean"), "avalanche_below": a,
+              "dz_gen_pre_onset": pre, "quiet_allowed": QUIET_BELOW_ALLOWED,
+              "across_words": AVALANCHE_ACROSS_WORDS}
+    if quiet_fails or across_fails:
+        reason = ("both_halves_fail" if quiet_fails and across_fails else
+                  "quiet_below_line" if quiet_fails else "avalanche_not_across")
+        return Judgement("crossing", DISAGREES, reason, values)
+    measured = quiet_measured and math.isfinite(a)
+    return Judgement("crossing", verdict_of(True, measured),
+                     "both_halves_hold" if measured else "not_measured", values)
 
 
 CLAIMS_123.append(Claim(
@@ -305,11 +267,15 @@ CLAIMS_123.append(Claim(
          "across the line from the quiet one). Agrees if both hold, disagrees if either fails.")))
 
 
-def _orientation(n: dict):
+def _orientation(n: dict) -> Judgement:
+    """The mean orientation "within_tol" of the paper's or "off" it; "not_measured"."""
     o = ORIENTATION_DEG
-    m, k = num(n.get("orientation_mean_deg")), n.get("n_clusters_orientation")
-    ours = f"{show(m, '.0f')} deg (median {show(num(n.get('orientation_median_deg')), '.0f')}; {k} clusters of >= 5 grains)"
-    return ours, verdict_of(abs(m - o.value) <= o.tol, math.isfinite(m)), ""
+    m = num(n.get("orientation_mean_deg"))
+    ok = abs(m - o.value) <= o.tol
+    reason = "within_tol" if ok else "off" if math.isfinite(m) else "not_measured"
+    values = {"mean": m, "median": num(n.get("orientation_median_deg")),
+              "n_clusters": n.get("n_clusters_orientation")}
+    return Judgement("orientation", verdict_of(ok, math.isfinite(m)), reason, values)
 
 
 CLAIMS_123.append(Claim(
@@ -325,10 +291,14 @@ CLAIMS_123.append(Claim(
 ENRICHMENT_MIN = 1.5
 
 
-def _failure_in_clusters(n: dict):
+def _failure_in_clusters(n: dict) -> Judgement:
+    """"enriched" (above the uncorrelated line, by ENRICHMENT_MIN or more), "not_enriched",
+    "not_measured"."""
     x, r = num(n.get("failing_in_cluster_excess")), num(n.get("failing_in_cluster_enrichment"))
-    ours = f"{show(x, '+.2f')} above the uncorrelated line ({show(r, '.1f')}x more failure in clusters)"
-    return ours, verdict_of(x > 0 and r >= ENRICHMENT_MIN, math.isfinite(x) and math.isfinite(r)), ""
+    ok, measurable = x > 0 and r >= ENRICHMENT_MIN, math.isfinite(x) and math.isfinite(r)
+    reason = "enriched" if ok else "not_enriched" if measurable else "not_measured"
+    return Judgement("failure_in_clusters", verdict_of(ok, measurable), reason,
+                     {"excess": x, "enrichment": r})
 
 
 CLAIMS_123.append(Claim(
@@ -340,17 +310,14 @@ CLAIMS_123.append(Claim(
          f"the uncorrelated line and >= {ENRICHMENT_MIN:g} times it (\"much higher\").")))
 
 
-def _c_peak(n: dict):
+def _c_peak(n: dict) -> Judgement:
+    """The maximum of C(tau) "peak_at_zero" or "peak_off_zero" (the note: by how much, and
+    where the other counting convention puts it); "no_peak" without C."""
     t, c0 = n.get("C_argmax_tau"), num(n.get("C_tau0"))
     cmax = num(n.get("C_max"))
-    ours = f"max of C at tau = {t} ({show(cmax, '.2f')}), C(0) = {show(c0, '.2f')}"
-    note = "" if t == 0 or t is None else (
-        f"our maximum sits {abs(t)} frame(s) {'before' if t < 0 else 'after'} tau = 0 and exceeds "
-        f"C(0) by {show(cmax - c0, '.2f')}: large clusters and failure move together within about a "
-        "frame. Our N^f(k) counts the contacts lost from frame k to k + 1; counted from k - 1 to "
-        "k instead (the paper does not say which), the same data put the maximum at tau = "
-        f"{t + 1}. The difference from the paper is within this one-frame convention.")
-    return ours, verdict_of(t == 0, t is not None and math.isfinite(c0)), note
+    reason = "no_peak" if t is None else "peak_at_zero" if t == 0 else "peak_off_zero"
+    return Judgement("c_peak", verdict_of(t == 0, t is not None and math.isfinite(c0)), reason,
+                     {"tau": t, "c0": c0, "c_max": cmax, "excess": cmax - c0})
 
 
 CLAIMS_123.append(Claim(
@@ -359,37 +326,28 @@ CLAIMS_123.append(Claim(
 
 
 # what fig3's peak_rule calls a peak of S_m (tiltpile.analysis.stats.PEAK_RULES; "c0" reads the
-# +40% as C(0) and has no peaks); fig3 writes peak_rule into its numbers only off the default
+# +40% as C(0) and has no peaks; each described in templates/claims.md.j2); fig3 writes
+# peak_rule into its numbers only off the default
 PEAK_DEFAULT = "sigma"
-PEAKS = {"sigma": "a local maximum more than one standard deviation above the quiet-period mean",
-         "local": "any local maximum of S_m within a quiet period, without a threshold",
-         "decile": "any quiet frame in the top decile of its run's quiet S_m, a local maximum or "
-                   "not"}
+PEAKS = ("sigma", "local", "decile")
 MIN_PEAKS = 10      # fewest peaks (or pairs of quiet frames for "c0") the enhancement is judged on
 
 
-def _enhancement(n: dict):
-    en, forty = ENHANCEMENT, f"{ENHANCEMENT.value:+.0%}"
+def _enhancement(n: dict) -> Judgement:
+    """The enhancement (or C(0), with peak_rule "c0") "in_band" or "out_of_band" of the paper's
+    "about"; "too_few_peaks" below MIN_PEAKS (its note that of a miss, where it misses);
+    "not_measured". The values name the peak rule and the others fig3 offers."""
+    en = ENHANCEMENT
     rule = n.get("peak_rule") or PEAK_DEFAULT
     e, k = num(n.get("enhancement_tau0")), n.get("n_peaks")
     ok = en.lo <= e <= en.hi
-    others = ", ".join(f'"{r}"' for r in (*PEAKS, "c0") if r != rule)
-    if rule == "c0":
-        ours = f"C(0) = {show(e, '.2f')} read as the {forty} ({k} pairs of quiet frames)"
-        note = "" if ok or not math.isfinite(e) else (
-            f"read as C(0) (fig3's peak_rule \"c0\": the paper's {forty} as the correlation at "
-            f"tau = 0, not as a rate after peaks), our C(0) is outside {en.lo:g}-{en.hi:g}; the "
-            f"other readings are fig3's peak_rule {others}.")
-        return ours, verdict_of(ok, math.isfinite(e) and (k or 0) >= MIN_PEAKS), note
-    ours = f"{show(e, '+.0%')} right after {k} peaks of the largest cluster"
-    if rule != PEAK_DEFAULT:
-        ours += f" (peak: {PEAKS.get(rule, rule)})"
-    note = "" if ok or not math.isfinite(e) else (
-        "the size of the enhancement depends on what counts as a peak of S_m (ours: "
-        f"{PEAKS.get(rule, rule)}, stats.cluster_peaks); the paper does not define it. fig3's "
-        f"peak_rule gives the other readings ({others}; \"c0\" reads the {forty} as C(0)); "
-        "docs/figures.md (Fig. 3) gives what each measures.")
-    return ours, verdict_of(ok, math.isfinite(e) and (k or 0) >= MIN_PEAKS), note
+    measurable = math.isfinite(e) and (k or 0) >= MIN_PEAKS
+    reason = ("not_measured" if not math.isfinite(e) else "too_few_peaks" if not measurable else
+              "in_band" if ok else "out_of_band")
+    values = {"enhancement": e, "n_peaks": k, "in_band": ok, "peak_rule": rule,
+              "peak_default": PEAK_DEFAULT, "others": [r for r in (*PEAKS, "c0") if r != rule],
+              "paper": en.value, "band": [en.lo, en.hi]}
+    return Judgement("enhancement", verdict_of(ok, measurable), reason, values)
 
 
 CLAIMS_123.append(Claim(
@@ -416,13 +374,14 @@ CLAIMS_456: list[Claim] = []      # likewise
 STRADDLE_SHARE = 0.1
 
 
-def _clusters_straddle(n: dict):
+def _clusters_straddle(n: dict) -> Judgement:
+    """"straddle" (STRADDLE_SHARE of the quiet clusters on each side), "one_side", or
+    "not_measured" (which says what "one_side" does)."""
     below, on, above = (num(n.get(k)) for k in ("quiet_frac_below", "quiet_frac_on", "quiet_frac_above"))
-    ours = f"{below:.0%} below, {on:.0%} on, {above:.0%} above the line ({n.get('quiet_n')} clusters)"
     ok = below >= STRADDLE_SHARE and (on + above) >= STRADDLE_SHARE
-    note = "" if ok else ("quiet clusters lie mostly on one side of the marginal line; cluster z counts "
-                          "contacts with rattlers and walls, see fig4 module docstring")
-    return ours, verdict_of(ok, math.isfinite(below)), note
+    reason = "straddle" if ok else "one_side" if math.isfinite(below) else "not_measured"
+    return Judgement("clusters_straddle", verdict_of(ok, math.isfinite(below)), reason,
+                     {"below": below, "on": on, "above": above, "n_clusters": n.get("quiet_n")})
 
 
 CLAIMS_456.append(Claim(
@@ -436,12 +395,16 @@ CLAIMS_456.append(Claim(
 Z_ISO = 3.0     # the isostatic contact number of frictional disks, d + 1 in d = 2
 
 
-def _rest_stable(n: dict):
+def _rest_stable(n: dict) -> Judgement:
+    """"always_above" (no quiet frame with z_rest below Z_ISO, the mean above it),
+    "frames_below" (some quiet frames below), "mean_not_above" (none below, the mean not above),
+    "not_measured"."""
     z, fb = num(n.get("z_rest_mean_quiet")), num(n.get("z_rest_frac_below_iso_quiet"))
-    ours = f"<z_rest> = {show(z, '.3f')}; {show(fb, '.1%')} of quiet frames with z_rest < {Z_ISO:g}"
-    note = "" if fb == 0 or not math.isfinite(fb) else (
-        f"in some quiet frames the rest of the pile is at or below z_iso = {Z_ISO:g}.")
-    return ours, verdict_of(fb == 0 and z > Z_ISO, math.isfinite(fb) and math.isfinite(z)), note
+    reason = ("not_measured" if not math.isfinite(fb) else "frames_below" if fb != 0 else
+              "not_measured" if not math.isfinite(z) else
+              "always_above" if z > Z_ISO else "mean_not_above")
+    return Judgement("rest_stable", verdict_of(fb == 0 and z > Z_ISO, math.isfinite(fb) and math.isfinite(z)),
+                     reason, {"z_rest": z, "below_iso": fb, "z_iso": Z_ISO})
 
 
 CLAIMS_456.append(Claim(
@@ -453,22 +416,22 @@ CLAIMS_456.append(Claim(
          f"{Z_ISO:g}.")))
 
 
-def _delta(n: dict):
-    d, cnt = num(n.get("delta_pooled")), n.get("n_pooled")
+def _delta(n: dict) -> Judgement:
+    """With an interval over runs: "interval_meets_band" or "interval_misses_band"; without one,
+    the fit's own error: "fit_meets_band" or "fit_misses_band"; "not_measured"."""
+    d = num(n.get("delta_pooled"))
     lo, hi = num(n.get("delta_pooled_ci_low")), num(n.get("delta_pooled_ci_high"))
-    ours = (f"{show_ci(n, 'delta_pooled', '.2f')} ({cnt} clusters of {n.get('delta_pooled_n_runs')} "
-            f"runs, s >= {n.get('s_min')}; interval: runs resampled)")
     if math.isfinite(lo):
         ok, meas = overlaps(lo, hi, DELTA.lo, DELTA.hi), True
+        reason = "interval_meets_band" if ok else "interval_misses_band"
     else:                                   # no interval: the fit's own error
         e = num(n.get("delta_pooled_err"))
         ok, meas = abs(d - DELTA.value) <= DELTA.tol + 2 * e, math.isfinite(d)
-    note = "" if ok or not meas else (
-        f"our delta lies outside the paper's {DELTA.value:g} +- {DELTA.tol:g} for every "
-        "resampling of the runs. The fit window, s_min and the cluster definition (links through "
-        "any contact of a grain with a critical contact) all move delta; with few runs the tail "
-        "is short.")
-    return ours, verdict_of(ok, meas), note
+        reason = "fit_meets_band" if ok else "fit_misses_band" if meas else "not_measured"
+    values = {"delta": interval_of(n, "delta_pooled"), "n_clusters": n.get("n_pooled"),
+              "n_runs": n.get("delta_pooled_n_runs"), "s_min": n.get("s_min"),
+              "paper": DELTA.value, "tol": DELTA.tol}
+    return Judgement("delta", verdict_of(ok, meas), reason, values)
 
 
 CLAIMS_456.append(Claim(
@@ -483,23 +446,24 @@ CLAIMS_456.append(Claim(
 XI_LATE = FIG5_WINDOWS_DEG[-2:]
 
 
-def _xi_grows(n: dict):
+def _xi_grows(n: dict) -> Judgement:
+    """"too_few_windows" (fewer than 3, or no rank correlation), "no_growth", "no_late_fit"
+    (xi grows, the windows next to the onset have no fit), "upturn" (the late log-slope larger
+    than the average one) or "no_upturn"."""
     rho, slope, k = num(n.get("xi_spearman")), num(n.get("xi_slope_log10_per_deg")), n.get("xi_n_windows")
     w = n.get("windows") or {}
     wa, wb = XI_LATE
     a, b = ((w.get(f"{c:g}") or {}).get("xi") for c in XI_LATE)
     late = (math.log10(num(b)) - math.log10(num(a))) / (wb - wa) if a and b and a > 0 and b > 0 else math.nan
-    ours = (f"Spearman {show(rho, '.2f')}, d log10 xi / d theta = {show(slope, '.2f')} per deg over "
-            f"{k} windows, {show(late, '.2f')} per deg in the last {-wa:g} deg")
+    values = {"spearman": rho, "slope": slope, "n_windows": k, "late_slope": late, "late_deg": -wa}
     if not (math.isfinite(rho) and (k or 0) >= 3):
-        return ours, INCONCLUSIVE, ""
+        return Judgement("xi_grows", INCONCLUSIVE, "too_few_windows", values)
     if not (rho > 0 and slope > 0):
-        return ours, DISAGREES, "xi does not grow towards the onset."
+        return Judgement("xi_grows", DISAGREES, "no_growth", values)
     if not math.isfinite(late):
-        return ours, INCONCLUSIVE, "xi grows, but the windows next to the onset have no fit."
+        return Judgement("xi_grows", INCONCLUSIVE, "no_late_fit", values)
     ok = late > slope
-    note = "" if ok else "xi grows, but not faster just before the onset (no upturn)."
-    return ours, verdict_of(ok), note
+    return Judgement("xi_grows", verdict_of(ok), "upturn" if ok else "no_upturn", values)
 
 
 CLAIMS_456.append(Claim(
@@ -511,10 +475,13 @@ CLAIMS_456.append(Claim(
          "average one (the upturn).")))
 
 
-def _smax_grows(n: dict):
+def _smax_grows(n: dict) -> Judgement:
+    """"grows", "does_not_grow" or "not_measured"."""
     far, near = num(n.get("s_max_far")), num(n.get("s_max_near"))
-    ours = f"{show(far, '.1f')} far from onset -> {show(near, '.1f')} in the last 0.5 deg"
-    return ours, verdict_of(near > far, math.isfinite(far) and math.isfinite(near)), ""
+    measurable = math.isfinite(far) and math.isfinite(near)
+    reason = "grows" if near > far else "does_not_grow" if measurable else "not_measured"
+    return Judgement("smax_grows", verdict_of(near > far, measurable), reason,
+                     {"far": far, "near": near})
 
 
 CLAIMS_456.append(Claim(
@@ -530,23 +497,22 @@ CLAIMS_456.append(Claim(
 DZ_SINGLE_GRAIN, DZ_NEAR_GLOBAL = -1.5, 0.5
 
 
-def _dz_min(n: dict):
+def _dz_min(n: dict) -> Judgement:
+    """"bounds_hold" (no cluster below the single-grain bound, the smallest on it, the largest
+    near the global line), "bounds_fail", "not_measured". The values give how many clusters
+    holding an unstable grain were left out (None where fig6 did not say)."""
     mn1 = num(((n.get("classes") or {}).get("1") or {}).get("dz_min"))
     below = num(n.get("frac_below_single_grain"))
     big = n.get("largest_bin") or {}
     mn_big = num(big.get("dz_min"))
-    left = n.get("n_clusters_unstable")
-    ours = (f"min dz {show(mn1, '.2f')} (s = 1) -> {show(mn_big, '.2f')} (s >= {big.get('size_lo')}); "
-            f"{show(below, '.1%')} of the clusters below {DZ_SINGLE_GRAIN:g}")
-    if left is not None:
-        ours += (f" ({left} clusters, {show(num(n.get('frac_clusters_unstable')), '.1%')}, holding "
-                 "a locally unstable grain left out: moving grains, docs/figures.md)")
     ok = below == 0 and abs(mn1 - DZ_SINGLE_GRAIN) < 1e-6 and abs(mn_big) <= DZ_NEAR_GLOBAL
-    note = ""
-    if math.isfinite(below) and not ok:
-        note = ("the smallest clusters do not sit on the single-grain bound, clusters fall below "
-                "it, or the largest clusters' minimum stays far from the global line.")
-    return ours, verdict_of(ok, math.isfinite(below) and math.isfinite(mn_big)), note
+    reason = "bounds_hold" if ok else "bounds_fail" if math.isfinite(below) else "not_measured"
+    values = {"dz_min_single": mn1, "dz_min_largest": mn_big, "size_lo": big.get("size_lo"),
+              "below": below, "single_grain": DZ_SINGLE_GRAIN,
+              "n_unstable": n.get("n_clusters_unstable"),
+              "frac_unstable": num(n.get("frac_clusters_unstable"))}
+    return Judgement("dz_min", verdict_of(ok, math.isfinite(below) and math.isfinite(mn_big)),
+                     reason, values)
 
 
 CLAIMS_456.append(Claim(
@@ -562,29 +528,26 @@ CLAIMS_456.append(Claim(
          f"they are the ones below {DZ_SINGLE_GRAIN:g}.")))
 
 
-def _dz_shift(n: dict):
+def _dz_shift(n: dict) -> Judgement:
+    """"shifts_positive" (<delta z> rises with size and the largest bin's is > 0),
+    "stays_negative" (the note gives the size classes from 8 grains up and whether they level
+    off), "not_measured"."""
     cls = n.get("classes", {})
     slope = num(n.get("slope_per_decade"))
     big = n.get("largest_bin") or {}
     mean_big = num(big.get("dz_mean"))
-    ours = (f"<dz> {show(num((cls.get('1') or {}).get('dz_mean')), '.2f')} (s = 1) -> "
-            f"{show(mean_big, '.2f')} (s >= {big.get('size_lo')}), "
-            f"{show(slope, '+.2f')} per decade of size")
     ok = slope > 0 and mean_big > 0
     # the size classes from 8 grains up ("8-15", "16+"), said to level off when their means lie
     # within 0.05 of each other
-    big_classes = [(k, num(c.get("dz_mean"))) for k, c in cls.items()
+    big_classes = [[k, num(c.get("dz_mean"))] for k, c in cls.items()
                    if int(k.split("-")[0].rstrip("+")) >= 8]
     means = [m for _, m in big_classes]
-    flat = len(means) > 1 and max(means) - min(means) < 0.05
-    plateau = ", ".join(f"{show(m, '+.2f')} (s {'>= ' + k[:-1] if k.endswith('+') else '= ' + k})"
-                        for k, m in big_classes)
-    note = "" if ok or not math.isfinite(mean_big) else (
-        "our mean delta z rises with size but stays below the global line (negative) for the "
-        "largest clusters we have"
-        + (f"; from 8 grains up {'it levels off: ' if flat else ''}{plateau}" if plateau else "")
-        + "; the paper's distributions end slightly positive.")
-    return ours, verdict_of(ok, math.isfinite(slope) and math.isfinite(mean_big)), note
+    reason = "shifts_positive" if ok else "stays_negative" if math.isfinite(mean_big) else "not_measured"
+    values = {"dz_mean_single": num((cls.get("1") or {}).get("dz_mean")),
+              "dz_mean_largest": mean_big, "size_lo": big.get("size_lo"), "slope": slope,
+              "plateau": big_classes, "flat": len(means) > 1 and max(means) - min(means) < 0.05}
+    return Judgement("dz_shift", verdict_of(ok, math.isfinite(slope) and math.isfinite(mean_big)),
+                     reason, values)
 
 
 CLAIMS_456.append(Claim(

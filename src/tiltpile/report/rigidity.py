@@ -1,29 +1,30 @@
 """Beyond the paper: the rigidity claims (Fig. 7), judged from the rigid clusters of the
 (3,3) pebble game, each declared once as the paper's are (:mod:`.paper`): its judge, then its
-:class:`Claim` with the :class:`Rule` it applies; the claims in report order.
+:class:`Claim` with the :class:`Rule` it applies; the claims in report order. Each judge returns
+a :class:`Judgement` (verdict, reason, values); its sentences are the macros of
+``templates/claims.md.j2`` named after the claim's key.
 """
 
 from __future__ import annotations
 
 import math
 
-from .judging import Claim, Rule, num, show, show_interval, verdict_of
+from .judging import Claim, Judgement, Rule, estimate_of, num, verdict_of
 
 BEYOND = "beyond the paper"     # the paper's value of a claim the paper does not make
 
 CLAIMS_RIGIDITY: list[Claim] = []   # in report order: each appended right after its judge
 
 
-def _rigid_spans(n: dict):
-    d = n.get("quiet_spanning_fraction") or {}
-    lo = num(d.get("low"))
-    ours = (f"{show_interval(d)} of the quiet frames span; largest rigid cluster "
-            f"{show_interval(n.get('quiet_rigid_fraction'))} of the grains")
+def _rigid_spans(n: dict) -> Judgement:
+    """"spans" (the interval of the spanning fraction above 1/2), "does_not_span",
+    "not_measured"."""
+    d = estimate_of(n.get("quiet_spanning_fraction"))
+    lo = d[1]
     ok = lo > 0.5
-    note = "" if ok or not math.isfinite(lo) else (
-        "in most quiet frames the largest rigid cluster does not reach from the ground to the "
-        "free surface.")
-    return ours, verdict_of(ok, math.isfinite(lo)), note
+    reason = "spans" if ok else "does_not_span" if math.isfinite(lo) else "not_measured"
+    return Judgement("rigid_spans", verdict_of(ok, math.isfinite(lo)), reason,
+                     {"spanning": d, "rigid_fraction": estimate_of(n.get("quiet_rigid_fraction"))})
 
 
 CLAIMS_RIGIDITY.append(Claim(
@@ -38,13 +39,15 @@ CLAIMS_RIGIDITY.append(Claim(
          "agrees if the interval lies above 1/2.")))
 
 
-def _rigid_shrinks(n: dict):
-    d = n.get("rigid_fraction_shrink") or {}
-    hi = num(d.get("high"))
-    ours = (f"{show_interval(n.get('rigid_fraction_far'))} further than {show(n.get('far_deg'), 'g')} "
-            f"deg -> {show_interval(n.get('rigid_fraction_near'))} within {show(n.get('near_deg'), 'g')} "
-            f"deg of onsets (difference {show_interval(d, '+.3f')})")
-    return ours, verdict_of(hi < 0, math.isfinite(hi)), ""
+def _rigid_shrinks(n: dict) -> Judgement:
+    """"shrinks" (the interval of the difference below 0), "does_not_shrink", "not_measured"."""
+    d = estimate_of(n.get("rigid_fraction_shrink"))
+    hi = d[2]
+    reason = "shrinks" if hi < 0 else "does_not_shrink" if math.isfinite(hi) else "not_measured"
+    values = {"far": estimate_of(n.get("rigid_fraction_far")), "far_deg": n.get("far_deg"),
+              "near": estimate_of(n.get("rigid_fraction_near")), "near_deg": n.get("near_deg"),
+              "shrink": d}
+    return Judgement("rigid_shrinks", verdict_of(hi < 0, math.isfinite(hi)), reason, values)
 
 
 CLAIMS_RIGIDITY.append(Claim(
@@ -60,19 +63,20 @@ CLAIMS_RIGIDITY.append(Claim(
 MIN_ONSETS = 5      # fewest onsets after a quiet frame the loss of spanning is judged on
 
 
-def _rigid_loses_spanning(n: dict):
+def _rigid_loses_spanning(n: dict) -> Judgement:
+    """"lost_before" (more than half of the onsets follow a quiet frame that does not span),
+    "still_spans", "too_few_onsets" (below MIN_ONSETS; its note that of "still_spans" where it
+    holds), "not_measured"."""
     k = n.get("n_onsets") or 0
-    before = num(n.get("spanning_before_fraction"))
-    at = num(n.get("spanning_at_fraction"))
-    lost = 1.0 - before
-    ours = (f"{show(lost, '.0%')} of {k} onsets follow a quiet frame that does not span (median "
-            f"{show(num(n.get('loss_to_onset_median')), '.2f')} deg before the onset); "
-            f"{show(at, '.0%')} still span at the onset frame")
+    lost = 1.0 - num(n.get("spanning_before_fraction"))
     ok = lost > 0.5
-    note = "" if ok or not math.isfinite(lost) else (
-        "the spanning rigid cluster is mostly still there at the last quiet frame, and at the "
-        "onset frame itself: it breaks during the avalanche, it does not announce it.")
-    return ours, verdict_of(ok, k >= MIN_ONSETS and math.isfinite(lost)), note
+    reason = ("not_measured" if not math.isfinite(lost) else "too_few_onsets" if k < MIN_ONSETS
+              else "lost_before" if ok else "still_spans")
+    values = {"lost": lost, "n_onsets": k, "lost_before_onset": ok,
+              "loss_median_deg": num(n.get("loss_to_onset_median")),
+              "at": num(n.get("spanning_at_fraction"))}
+    return Judgement("rigid_loses_spanning", verdict_of(ok, k >= MIN_ONSETS and math.isfinite(lost)),
+                     reason, values)
 
 
 CLAIMS_RIGIDITY.append(Claim(
@@ -87,18 +91,17 @@ CLAIMS_RIGIDITY.append(Claim(
 TOGETHER_DEG = 1.0  # the loss of spanning and the marginal crossing at most this far apart
 
 
-def _rigid_vs_marginal(n: dict):
+def _rigid_vs_marginal(n: dict) -> Judgement:
+    """"neither_before_onset" (neither happens before the onset), "together" (within
+    TOGETHER_DEG of each other) or "apart"."""
     sp = num(n.get("spanning_loss_theta_to_onset"))
     mz = num(n.get("marginal_crossing_theta_to_onset"))
     both_after = not math.isfinite(sp) and not math.isfinite(mz)
-    if both_after:
-        ours = ("neither before the onset: up to theta_m most quiet frames span and their mean "
-                "delta z_gen stays above 0")
-    else:
-        ours = (f"spanning lost (windows below 1/2) at {show(sp, '.2f')} deg, marginal line crossed "
-                f"at {show(mz, '.2f')} deg (n/a: not before the onset)")
     together = math.isfinite(sp) and math.isfinite(mz) and abs(sp - mz) <= TOGETHER_DEG
-    return ours, verdict_of(both_after or together), ""
+    reason = "neither_before_onset" if both_after else "together" if together else "apart"
+    return Judgement("rigid_vs_marginal", verdict_of(both_after or together), reason,
+                     {"spanning_loss": sp, "marginal_crossing": mz,
+                      "neither_before_onset": both_after})
 
 
 CLAIMS_RIGIDITY.append(Claim(
