@@ -213,3 +213,29 @@ def test_the_preparation_helper_compares_a_faster_history_with_the_study_s_own_r
         b = np.array([np.nan if v is None else v for v in slow[q]], float)
         assert d["estimate"] == pytest.approx(np.nanmean(a) - np.nanmean(b))
         assert d["low"] <= d["estimate"] <= d["high"]
+
+
+def test_the_dem_z_table_reads_the_same_runs_as_the_same_piles_studies():
+    """docs/method.md's DEM z (blocks.dem_z, read from the committed DEM records) is, seed for seed,
+    the ``value`` side of each DEM preset's committed same-piles study, and its CD column that
+    study's ``ref`` side: the table and the engines' comparison read the same runs."""
+    import json
+
+    from tiltpile import config
+    from tiltpile.report import blocks
+
+    d = blocks.dem_z(ROOT / "figures")
+    assert {r["preset"] for r in d["rows"]} == set(blocks.DEM_Z_PRESETS)
+    checked = 0
+    for r in d["rows"]:
+        sp = ROOT / config.preset_info(r["preset"]).figures / "same-piles" / "same_piles.json"
+        pap = json.loads(sp.read_text())["pile_against_pile"]
+        if r["seed"] not in pap["seeds"]:
+            assert r["cd_z0"] is None
+            continue
+        k = pap["seeds"].index(r["seed"])
+        for q, col in (("z_start", "z0"), ("z_quiet", "z_quiet")):
+            assert r[col] == pytest.approx(pap["per_seed"][q]["value"][k], abs=1e-12), (r, q)
+            assert r[f"cd_{col}"] == pap["per_seed"][q]["ref"][k]
+        checked += 1
+    assert checked >= 10

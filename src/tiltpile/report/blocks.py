@@ -19,8 +19,9 @@ returning the file's numbers as they are (or a number derived from them alone, a
 ``figs`` (:func:`figure_numbers`), ``meta`` (:func:`figure_meta`: runs, grains, history, cost),
 ``derived`` (:func:`derived`: Fig. 2's two populations and per-run angles summarized),
 ``same_piles`` (:func:`same_piles`: the pile-against-pile studies and their sides' figures),
-``preparation`` (:func:`preparation`: the preparation studies at 1000 and 4000 grains) and
-``definitions_study`` (:func:`definitions`: each definition's figure numbers).
+``preparation`` (:func:`preparation`: the preparation studies at 1000 and 4000 grains),
+``definitions_study`` (:func:`definitions`: each definition's figure numbers) and ``dem_z``
+(:func:`dem_z`: each DEM record's z beside its Contact Dynamics twin's).
 """
 
 from __future__ import annotations
@@ -34,7 +35,8 @@ from tiltpile.outputs import replaced_whole
 #: the documents that hold generated blocks, from the repository's root, and the prefix of the
 #: templates their blocks are rendered from (``templates/<prefix>_<name>.md.j2``)
 DOCUMENTS = {"README.md": "readme", "docs/presets.md": "presets", "docs/figures.md": "figures",
-             "docs/dem.md": "dem", "docs/performance.md": "performance", "docs/cli.md": "cli"}
+             "docs/dem.md": "dem", "docs/performance.md": "performance", "docs/cli.md": "cli",
+             "docs/method.md": "method"}
 FILES = tuple(DOCUMENTS)
 BEGIN = re.compile(r"^<!-- generated: ([a-z0-9_-]+) \(tiltpile docs; do not edit\) -->$")
 END = "<!-- end generated: {name} -->"
@@ -327,6 +329,61 @@ def preparation(root="figures") -> dict[str, dict]:
     return out
 
 
+#: the DEM presets whose committed records docs/method.md's table of z reads
+DEM_Z_PRESETS = ("default-dem", "paper-fast-dem", "paper-5x-dem")
+
+
+def dem_z(root="figures") -> dict:
+    """Each committed DEM record's bulk z beside that of the Contact Dynamics run of the same seed:
+    {"rows": [{"preset", "seed", "z0", "z_quiet", "quiet", "frames", "cd_z0", "cd_z_quiet"}],
+    "presets": {name: {"runs", "grains", "z0": [min, max, mean], "z_quiet": [min, max, mean]}},
+    "cd": {"z0": [min, max], "z_quiet": [min, max]}, "difference": {"z0": [min, max], "z_quiet":
+    [min, max]}}. DEM: the record's ``frames.z`` at its first frame and its mean over the frames
+    not avalanching (``frames.avalanching``: the 2% criterion, as the figures); CD: the ``ref``
+    side of the preset's committed ``same-piles/same_piles.json`` (None for a seed it lacks)."""
+    import json
+
+    import numpy as np
+
+    from tiltpile.record import read_record, record_files
+
+    rows, presets = [], {}
+    for name in DEM_Z_PRESETS:
+        base = Path(root).parent / cfgmod.preset_info(name).figures
+        recs = record_files(base / "records")
+        if not recs:
+            continue
+        sp = base / "same-piles" / "same_piles.json"
+        pap = json.loads(sp.read_text())["pile_against_pile"] if sp.is_file() else {"seeds": [], "per_seed": {}}
+        mine = []
+        for path in recs:
+            rec = read_record(path, pictures=False)
+            fr = rec.frames
+            order = np.argsort(np.asarray(fr["frame"]), kind="stable")
+            z, quiet = np.asarray(fr["z"])[order], ~np.asarray(fr["avalanching"], bool)[order]
+            seed = int(rec.meta["seed"])
+            k = pap["seeds"].index(seed) if seed in pap["seeds"] else None
+
+            def ref(q):
+                return None if k is None else float(pap["per_seed"][q]["ref"][k])
+            mine.append({"preset": name, "seed": seed, "z0": float(z[0]),
+                         "z_quiet": float(z[quiet].mean()), "quiet": int(quiet.sum()),
+                         "frames": int(z.size), "cd_z0": ref("z_start"), "cd_z_quiet": ref("z_quiet"),
+                         "grains": cfgmod.load(name).scene.n})
+        rows += mine
+        presets[name] = {"runs": len(mine), "grains": mine[0]["grains"],
+                         **{q: [min(r[q] for r in mine), max(r[q] for r in mine),
+                                sum(r[q] for r in mine) / len(mine)] for q in ("z0", "z_quiet")}}
+
+    def span(vals):
+        vals = [v for v in vals if v is not None]
+        return [min(vals), max(vals)] if vals else None
+    return {"rows": rows, "presets": presets,
+            "cd": {q: span(r[f"cd_{q}"] for r in rows) for q in ("z0", "z_quiet")},
+            "difference": {q: span(r[q] - r[f"cd_{q}"] for r in rows if r[f"cd_{q}"] is not None)
+                           for q in ("z0", "z_quiet")}}
+
+
 def _environment():
     from .main import _environment as env
 
@@ -343,6 +400,7 @@ def render_all(root="figures") -> dict[str, str]:
            "figs": figure_numbers(root),
            "meta": figure_meta(root), "derived": derived(root), "same_piles": same_piles(root),
            "preparation": preparation(root), "definitions_study": definitions(root),
+           "dem_z": dem_z(root),
            # docs/cli.md's keys and the presets' pile depths (tiltpile config prints the same)
            "config_keys": cfgmod.describe_keys(),
            "pile_depths": [{"name": p.name, **cfgmod.describe_depth(cfgmod.load(p.name))}
