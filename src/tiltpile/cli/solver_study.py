@@ -1,4 +1,4 @@
-"""``tiltpile solver-study --data DIR [--figures DIR] [--runs 6] [--workers W] [--only S,...]``: the
+"""``tiltpile solver-study [--data DIR] [--figures DIR] [--runs 6] [--workers W] [--only S,...]``: the
 solver's choice (issue 72; :mod:`tiltpile.studies.solver`).
 
 For each setting of the study (``studies.solver.SETTINGS``, or those of ``--only``; the
@@ -32,6 +32,7 @@ from pathlib import Path
 from tiltpile import config as cfgmod
 from tiltpile.cli._common import ConfigError
 
+DEFAULT_DATA = Path("data") / "solver-study"
 DEFAULT_FIGURES = Path("figures") / "solver-study"
 INTERRUPTED = ("interrupted; finished runs are kept, unfinished ones resume and kept comparisons "
                "are reused next time")
@@ -45,8 +46,9 @@ def add_parser(sub) -> None:
                                    "study, write their records, compare each with the committed "
                                    "setting on the same piles and write the chart, its JSON and "
                                    "the report section (issue 72; docs/cli.md).")
-    p.add_argument("--data", type=Path, required=True, metavar="DIR",
-                   help="where the runs go: DIR/<setting>/, the committed setting's DIR/reference/")
+    p.add_argument("--data", type=Path, default=DEFAULT_DATA, metavar="DIR",
+                   help=f"where the runs go: DIR/<setting>/, the committed setting's DIR/reference/ "
+                        f"(default {DEFAULT_DATA})")
     p.add_argument("--figures", type=Path, default=DEFAULT_FIGURES, metavar="DIR",
                    help=f"where the chart, JSON, report section, records and comparisons go "
                         f"(default {DEFAULT_FIGURES})")

@@ -1,4 +1,4 @@
-"""``tiltpile stiffness-study --data DIR [--figures DIR] [--preset default-dem] [--runs 6] ...``: the
+"""``tiltpile stiffness-study [--data DIR] [--figures DIR] [--preset default-dem] [--runs 6] ...``: the
 second engine in its rigid limit (issue 73; :mod:`tiltpile.studies.stiffness`).
 
 For each stiffness of the study (``studies.stiffness.SETTINGS``: the preset's k_n, 4 k_n at dt / 2,
@@ -39,6 +39,7 @@ from tiltpile import config as cfgmod
 from tiltpile.cli._common import ConfigError
 
 COMMAND = "stiffness-study"
+DEFAULT_DATA = Path("data") / "stiffness-study"
 DEFAULT_FIGURES = Path("figures") / "stiffness-study"
 INTERRUPTED = ("interrupted; finished runs are kept, unfinished ones resume and kept comparisons "
                "are reused next time")
@@ -52,8 +53,9 @@ def add_parser(sub) -> None:
                                    "study, write their records, compare them with k_n and with "
                                    "Contact Dynamics on the same piles, and write the figure, its "
                                    "JSON and the report section (issue 73; docs/dem.md).")
-    p.add_argument("--data", type=Path, required=True, metavar="DIR",
-                   help="where the runs go: DIR/<setting>/, the committed k_n's DIR/reference/")
+    p.add_argument("--data", type=Path, default=DEFAULT_DATA, metavar="DIR",
+                   help=f"where the runs go: DIR/<setting>/, the committed k_n's DIR/reference/ "
+                        f"(default {DEFAULT_DATA})")
     p.add_argument("--figures", type=Path, default=DEFAULT_FIGURES, metavar="DIR",
                    help=f"where the figure, JSON, report section, records and comparisons go "
                         f"(default {DEFAULT_FIGURES})")
