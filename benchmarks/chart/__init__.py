@@ -1,4 +1,4 @@
-"""``tiltpile bench --chart DIR`` (``make bench``): the speed x accuracy chart of the solver.
+"""``python -m benchmarks.chart DIR`` (``make bench``): the speed x accuracy chart of the solver.
 
 Three measurements, all on one core, one after the other, written to ``DIR`` (each file to a
 temporary name, then renamed):
@@ -27,7 +27,7 @@ temporary name, then renamed):
    final residual), per (tol, dt, slop) averaged over seeds; the default setting highlighted; the
    Pareto front (points that no other point beats in both time and error) drawn.
 3. Scaling (``scaling.csv``, ``scaling.png``). A pile of ``base_n`` grains at the paper's depth
-   (the ``tiltpile bench`` pile: box 120 d * n / 4000, paper preset, cached under data/bench) is
+   (the timing's pile, ``benchmarks.pile``: box 120 d * n / 4000, paper preset, cached under data/bench) is
    tiled k times side by side in a k-times wider box: grain (copy m, original id i) gets id
    i * k + m, so ids stay ordered bottom-up as in a deposited pile (the forward and interleaved
    sweeps rely on it), fixed bottom rows included; the inner walls disappear. The tiled pile settles

@@ -339,3 +339,36 @@ def test_the_charts_numbers(study, num_regression, data_regression):
                            "flipped": {s["name"]: s["flipped"] for s in doc["numbers"]["settings"]},
                            "decisions": {k: v for k, v in doc["numbers"]["decisions"].items()
                                          if isinstance(v, str) or v is None}})
+
+
+def test_reference_records_of_another_configuration_are_refused(tmp_path, capsys):
+    """--reference-records: a directory of the committed setting's records; records of another
+    configuration (here the committed 1000-grain study's, not the tiny piles') are refused in one
+    line before anything runs, and a missing directory too."""
+    src = ROOT / "figures" / "solver-study" / "records" / "reference"
+    assert main(["solver-study", "--data", str(tmp_path / "data"), "--figures", str(tmp_path / "fig"),
+                 "--only", "solver.max_iter=300", "--reference-records", str(src), *TINY]) == 2
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and "is a record of another configuration than the committed setting" in err[0]
+    assert main(["solver-study", "--data", str(tmp_path / "data"), "--figures", str(tmp_path / "fig"),
+                 "--only", "solver.max_iter=300", "--reference-records", str(tmp_path / "nope"),
+                 *TINY]) == 2
+    assert "not a directory" in capsys.readouterr().err
+    assert not (tmp_path / "fig").exists() and not (tmp_path / "data").exists()
+
+
+@pytest.mark.slow
+def test_reference_records_are_taken_in_and_their_seeds_not_run(study, tmp_path):
+    """The committed setting's records made elsewhere are copied into FIGURES/records/reference/
+    and its seeds are not run: with --records-only nothing runs at all, and the reference's
+    records are the given ones, byte for byte."""
+    d, _, _ = study
+    given = d / "figures" / "records" / "reference"
+    r = _study(tmp_path / "data", tmp_path / "figures", "--records-only", "--reference-records",
+               str(given), only=SETTINGS[0])
+    assert r.returncode == 0, r.stderr[-3000:]
+    assert "reference: the records of seeds [0, 1, 2] from" in r.stderr
+    mine = sorted((tmp_path / "figures" / "records" / "reference").glob("run_*.npz"))
+    assert [p.name for p in mine] == [f"run_{s:04d}.npz" for s in range(RUNS)]
+    assert all(p.read_bytes() == (given / p.name).read_bytes() for p in mine)
+    assert not (tmp_path / "data" / "reference").exists()

@@ -69,6 +69,10 @@ def add_parser(sub) -> None:
     p.add_argument("--null", type=int, default=0, metavar="K",
                    help="also count the figure numbers chance moves: K exchanges of each seed's two "
                         "runs per setting (tiltpile same-piles --null; default 0: none)")
+    p.add_argument("--reference-records", type=Path, metavar="DIR",
+                   help="the committed setting's records made elsewhere (e.g. "
+                        "figures/paper-5x/records with --preset paper-5x), taken into "
+                        "FIGURES/records/reference/: its seeds are not run again")
     add_stage_options(p)
     p.set_defaults(func=run, interrupted=INTERRUPTED)
 
@@ -142,6 +146,31 @@ def check_study(args, the_plan, override_of) -> None:
             recorded_seeds(rec, p.config.hash())      # a damaged record: refused now, in one line
 
 
+def check_foreign(d: Path, what: str, config_hash: str, describe: str) -> None:
+    """Refuse (one line) a damaged record in ``d`` or one of another configuration."""
+    from tiltpile.record import RecordError, read_meta, record_files
+
+    for path in record_files(d):
+        try:
+            meta = read_meta(path)
+        except RecordError as e:
+            raise ConfigError(f"{what}: {' '.join(str(e).split())}") from None
+        if meta.get("config_hash") != config_hash:
+            raise ConfigError(f"{what} {d}: {path.name} is a record of another configuration than "
+                              f"{describe} (hash {str(meta.get('config_hash'))[:12]}, "
+                              f"{config_hash[:12]})")
+
+
+def check_reference_records(args, the_plan, describe: str) -> None:
+    """``--reference-records DIR``: a directory of records of the plan's committed setting."""
+    if args.reference_records is None:
+        return
+    if not args.reference_records.is_dir():
+        raise ConfigError(f"--reference-records {args.reference_records}: not a directory")
+    check_foreign(args.reference_records, "--reference-records", the_plan.reference.config.hash(),
+                  describe)
+
+
 def _validate(args):
     """The plan (``studies.solver.plan``) and the directories, refused in one line before
     anything runs."""
@@ -150,6 +179,7 @@ def _validate(args):
     check_options(args)
     the_plan = solver.plan(args.preset, args.overrides, only(args.only), args.runs)
     check_study(args, the_plan, lambda p: p.setting.override)
+    check_reference_records(args, the_plan, f"the committed setting ({args.preset} with --set)")
     return the_plan
 
 
@@ -265,6 +295,8 @@ def _command(args) -> str:
         parts += ["--only", args.only]
     if args.null:
         parts += ["--null", str(args.null)]
+    if args.reference_records is not None:
+        parts += ["--reference-records", str(args.reference_records)]
     return " ".join(shlex.quote(p) if p != "tiltpile solver-study" else p for p in parts)
 
 
@@ -276,6 +308,13 @@ def run(args) -> int:
     from tiltpile.studies import solver
 
     the_plan = _validate(args)
+    if args.reference_records is not None:
+        from tiltpile.studies import settings as st
+
+        got = st.seed_records(args.reference_records, args.figures / "records" / st.REFERENCE,
+                              the_plan.seeds)
+        if got:
+            _say(f"reference: the records of seeds {got} from {args.reference_records}")
     crashed = [] if args.records_only or args.no_runs else _ensembles(args, the_plan)
     if args.runs_only:
         return _end(crashed)

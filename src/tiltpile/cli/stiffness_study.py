@@ -96,42 +96,23 @@ def add_parser(sub) -> None:
 # validation
 
 
-def _check_foreign(d: Path, what: str, config_hash: str, describe: str) -> None:
-    """Refuse (one line) a damaged record in ``d`` or one of another configuration."""
-    from tiltpile.record import RecordError, read_meta, record_files
-
-    for path in record_files(d):
-        try:
-            meta = read_meta(path)
-        except RecordError as e:
-            raise ConfigError(f"{what}: {' '.join(str(e).split())}") from None
-        if meta.get("config_hash") != config_hash:
-            raise ConfigError(f"{what} {d}: {path.name} is a record of another configuration than "
-                              f"{describe} (hash {str(meta.get('config_hash'))[:12]}, "
-                              f"{config_hash[:12]})")
-
-
 def _validate(args):
     """The plan (``studies.stiffness.plan``), the directories and LAMMPS, refused in one line
     before anything runs."""
     from tiltpile.record import RecordError, read_meta, record_files
     from tiltpile.studies import stiffness
 
-    from tiltpile.cli.solver_study import check_options, check_study, only
+    from tiltpile.cli.solver_study import (check_foreign, check_options, check_reference_records,
+                                           check_study, only)
 
     check_options(args)
     the_plan = stiffness.plan(args.preset, args.overrides, only(args.only), args.runs)
     check_study(args, the_plan, lambda p: None)
-    ref = the_plan.reference.config
-    if args.reference_records is not None:
-        if not args.reference_records.is_dir():
-            raise ConfigError(f"--reference-records {args.reference_records}: not a directory")
-        _check_foreign(args.reference_records, "--reference-records", ref.hash(),
-                       f"the study's k_n ({args.preset} with --set)")
+    check_reference_records(args, the_plan, f"the study's k_n ({args.preset} with --set)")
     if args.cd is not None:
         if args.cd.exists() and not args.cd.is_dir():
             raise ConfigError(f"--cd {args.cd}: not a directory")
-        _check_foreign(args.cd, "--cd", stiffness.cd_config(the_plan).hash(),
+        check_foreign(args.cd, "--cd", stiffness.cd_config(the_plan).hash(),
                        "Contact Dynamics' of these piles (the preset without [dem])")
     if args.paper_records is not None:
         files = record_files(args.paper_records)
