@@ -69,6 +69,19 @@ def seed(text: str) -> int:
         raise argparse.ArgumentTypeError(str(e)) from None
 
 
+def record_metas(directory, what: str):
+    """(path, meta) of every record ``run_*.npz`` in ``directory``, read cheaply
+    (``record.read_meta``); ConfigError naming ``what`` (one line) for a damaged one."""
+    from tiltpile.record import RecordError, read_meta, record_files
+
+    for path in record_files(directory):
+        try:
+            meta = read_meta(path)
+        except RecordError as e:
+            raise ConfigError(f"{what}: {' '.join(str(e).split())}") from None
+        yield path, meta
+
+
 def ensemble_files(directory, workers, what: str) -> list[Path]:
     """The finished run files of an ensemble directory given on the command line, sorted; one-line
     ConfigError for a directory that does not exist, ``workers`` below 1, or no run file

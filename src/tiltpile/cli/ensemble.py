@@ -34,16 +34,12 @@ def recorded_seeds(records: Path, config_hash: str) -> set[int]:
     """The seeds of the records in ``records`` (``run_*.npz``), all of which must be records of
     the configuration ``config_hash``; ConfigError (one line) for a missing directory, a damaged
     record or one of another configuration."""
-    from tiltpile.record import RecordError, read_meta, record_files
+    from tiltpile.cli._common import record_metas
 
     if not records.is_dir():
         raise ConfigError(f"--skip-recorded {records}: not a directory")
     seeds = set()
-    for path in record_files(records):
-        try:
-            meta = read_meta(path)
-        except RecordError as e:
-            raise ConfigError(f"--skip-recorded: {e}") from None
+    for path, meta in record_metas(records, "--skip-recorded"):
         if meta.get("config_hash") != config_hash:
             raise ConfigError(f"--skip-recorded: {path} is a record of another configuration "
                               f"(hash {str(meta.get('config_hash'))[:12]}, this one "

@@ -148,13 +148,9 @@ def check_study(args, the_plan, override_of) -> None:
 
 def check_foreign(d: Path, what: str, config_hash: str, describe: str) -> None:
     """Refuse (one line) a damaged record in ``d`` or one of another configuration."""
-    from tiltpile.record import RecordError, read_meta, record_files
+    from tiltpile.cli._common import record_metas
 
-    for path in record_files(d):
-        try:
-            meta = read_meta(path)
-        except RecordError as e:
-            raise ConfigError(f"{what}: {' '.join(str(e).split())}") from None
+    for path, meta in record_metas(d, what):
         if meta.get("config_hash") != config_hash:
             raise ConfigError(f"{what} {d}: {path.name} is a record of another configuration than "
                               f"{describe} (hash {str(meta.get('config_hash'))[:12]}, "
