@@ -138,12 +138,12 @@ def edge_cases(v):
 
 def _verdict(claims, key, figure, numbers) -> str:
     """The verdict of claim ``key`` on a figure JSON holding ``numbers`` (as the report judges)."""
-    from tiltpile.report.document import judge_all
+    from tiltpile.report.document import judgements
 
     doc = json.loads(json.dumps({"figure": FIGURE[figure], "preset": "smoke", "n_runs": 3,
                                  "n_grains": 250, "numbers": numbers}))
-    rows = judge_all({FIGURE[figure]: doc}, [c for c in claims if c.key == key])
-    return rows[0][2]
+    rows = judgements({FIGURE[figure]: doc}, [c for c in claims if c.key == key])
+    return rows[0][1].verdict
 
 
 CASES = list(edge_cases(pv))

@@ -13,7 +13,7 @@ import pytest
 from tiltpile.figures import definitions as fd
 from tiltpile.report import definitions as rd
 from tiltpile.report.claims import CLAIMS
-from tiltpile.report.document import judge_all, load_figures
+from tiltpile.report.document import judgements, load_figures
 from tiltpile.report.judging import AGREES, DISAGREES
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -62,7 +62,7 @@ def test_a_notebook_parameter_recomputes_its_figure_only(smoke_study):
 
 def test_the_report_judges_each_definition_as_the_figures(tmp_path):
     """A study whose definitions are the committed figures of two scales: each column of the
-    section is judge_all's verdicts on that scale's JSON, and a claim disagreeing under the first
+    section is the judgements' verdicts on that scale's JSON, and a claim disagreeing under the first
     names the definitions that flip it."""
     a, b = load_figures(ROOT / "figures"), load_figures(ROOT / "figures" / "paper")
     doc = {"n_runs": 6, "n_grains": 1000, "fit": {"g": 0.002, "target": 3.5},
@@ -73,7 +73,7 @@ def test_the_report_judges_each_definition_as_the_figures(tmp_path):
                 "params": {"contact_rule": "gap:0.002"}, "notebook": {}, "documents": b}]}
     v = rd.verdicts(doc, CLAIMS)
     for key, figs in (("force", a), ("list", b)):
-        assert {c.key: verdict for c, _, verdict, _, _ in judge_all(figs, CLAIMS)} == \
+        assert {c.key: j.verdict for c, j, _ in judgements(figs, CLAIMS)} == \
             {k: verdict for k, (_, verdict) in v[key].items()}
     lines = rd.render(doc, CLAIMS)
     assert lines[1] == "## What the disagreements depend on (6 runs of 1000 grains)"
@@ -121,7 +121,7 @@ def test_the_reports_take_the_definitions_axis_from_the_study(tmp_path):
     ctx = context(figs)
     d4 = ctx["definitions"]["4000"]
     assert d4["piles"] == 16 and d4["seeds"] == "2-17"
-    verdicts = {c.key: v for c, _, v, _, _ in judge_all(a, CLAIMS)}
+    verdicts = {c.key: j.verdict for c, j, _ in judgements(a, CLAIMS)}
     for r in ctx["rows"]:
         e = r["definitions"]
         if verdicts[r["key"]] in ("agrees", "disagrees", "inconclusive"):

@@ -12,7 +12,7 @@ import pytest
 from tiltpile.report import history_rate as hr
 from tiltpile.report import main as rm
 from tiltpile.report.claims import CLAIMS
-from tiltpile.report.document import judge_all, load_figures
+from tiltpile.report.document import judgements, load_figures
 from tiltpile.report.judging import AGREES, DISAGREES, INCONCLUSIVE
 
 ROOT = Path(__file__).resolve().parents[2]
@@ -33,22 +33,22 @@ def test_the_main_report_is_short_and_its_first_table_is_the_papers_scale():
     assert head[:4] == ["claim", "paper", "ours", "verdict"]
     assert {"1000 grains", "definitions: best / worst", "DEM 4000"} <= set(head)
     # every claim, in order, with the paper-scale verdict its judge returns
-    paper = judge_all(load_figures(ROOT / "figures" / "paper"), CLAIMS)
+    paper = judgements(load_figures(ROOT / "figures" / "paper"), CLAIMS)
     rows = lines[first + 2:first + 2 + len(CLAIMS)]
-    for k, (row, (c, _, verdict, _, _)) in enumerate(zip(rows, paper)):
+    for k, (row, (c, j, _)) in enumerate(zip(rows, paper)):
         cells = [x.strip() for x in row.strip("|").split("|")]
-        assert cells[0] == f"{k + 1}. {c.text}" and cells[3].strip("*") == verdict
+        assert cells[0] == f"{k + 1}. {c.text}" and cells[3].strip("*") == j.verdict
 
 
 def test_the_context_is_the_judges_data():
     ctx = rm.context(ROOT / "figures")
-    paper = judge_all(load_figures(ROOT / "figures" / "paper"), CLAIMS)
+    paper = judgements(load_figures(ROOT / "figures" / "paper"), CLAIMS)
     assert [r["key"] for r in ctx["rows"]] == [c.key for c in CLAIMS]
-    assert [r["verdict"] for r in ctx["rows"]] == [v for _, _, v, _, _ in paper]
+    assert [r["verdict"] for r in ctx["rows"]] == [j.verdict for _, j, _ in paper]
     n_paper = sum(1 for r in ctx["rows"] if not r["beyond"])
     assert sum(ctx["counts"].values()) == n_paper == ctx["n_paper_claims"]
-    small = judge_all(load_figures(ROOT / "figures"), CLAIMS)
-    assert [r["small"] for r in ctx["rows"]] == [v for _, _, v, _, _ in small]
+    small = judgements(load_figures(ROOT / "figures"), CLAIMS)
+    assert [r["small"] for r in ctx["rows"]] == [j.verdict for _, j, _ in small]
     # the best and worst definition are the extremes of the study's verdicts
     d4 = ctx["definitions"]["4000"]
     for r in ctx["rows"]:

@@ -1,6 +1,6 @@
 """The reports of one scale and the side studies in full: load the figures' JSON, judge every
-claim (:func:`judgements`: each claim's :class:`~.judging.Judgement`; :func:`judge_all`: the
-same with its sentences rendered), render one scale's report (its claims' table and its judges'
+claim (:func:`judgements`: each claim's :class:`~.judging.Judgement`, its sentences rendered
+on demand), render one scale's report (its claims' table and its judges'
 notes: :func:`write_report`, ``figures/<scale>/REPRODUCTION.md``), render every side study once
 (:func:`render_studies`: Fig. 2's numbers at every scale, every claim at every scale
 (:func:`render_by_scale`), the preparation, definitions, engines, history-rate and friction
@@ -68,12 +68,6 @@ def judgements(figs: dict[str, dict], claims: list[Claim]) -> list[tuple[Claim, 
         doc = figs[stem]
         out.append((c, judge_document(c, doc), source(doc)))
     return out
-
-
-def judge_all(figs: dict[str, dict], claims: list[Claim]) -> list[tuple[Claim, str, str, str, str]]:
-    """:func:`judgements` as text: (claim, ours, verdict, note, source) of every claim, the
-    sentences rendered (for the callers that print or compare them)."""
-    return [(c, j.ours, j.verdict, j.note, src) for c, j, src in judgements(figs, claims)]
 
 
 def render(figs: dict[str, dict], claims: list[Claim], scales: list[str] | None = None,

@@ -399,9 +399,9 @@ def verdicts(docs: dict[str, dict]) -> dict[str, dict]:
     """{claim key: {verdict, ours}} of every claim of the report on the figure documents
     ``docs`` ({stem: document}), as the report judges them."""
     from tiltpile.report.claims import CLAIMS
-    from tiltpile.report.document import judge_all
+    from tiltpile.report.document import judgements
 
-    return {c.key: {"verdict": v, "ours": ours} for c, ours, v, _note, _src in judge_all(docs, CLAIMS)}
+    return {c.key: {"verdict": j.verdict, "ours": j.ours} for c, j, _src in judgements(docs, CLAIMS)}
 
 
 def flipped(ref: dict, other: dict) -> list[str]:

@@ -11,7 +11,7 @@ the committed setting's (``reference``), each compared with it:
   jackknife error, a number *moved* beyond ``SIGMA_LIMIT`` = 2 of them; with ``null_flips``, the
   count chance gives by exchanging each seed's two runs). Its ``<n_m>`` of the quiet frames, pile
   against pile, is the setting's **n_m shift**;
-* **claim by claim**: the report's judges (:func:`tiltpile.report.document.judge_all` with
+* **claim by claim**: the report's judges (:func:`tiltpile.report.document.judgements` with
   :data:`tiltpile.report.claims.CLAIMS`) on each side's figure documents of the common seeds; a
   claim is *flipped* by a setting whose verdict differs from the committed setting's on the same
   piles (neither "not measured");
